@@ -1,0 +1,24 @@
+"""metairl_engine: meta inverse reinforcement learning via maximum reward sharing (Li & Burdick).
+
+A plain library (numpy + torch, no web, no database). Importing the package imports neither torch
+nor the fit: the numpy-only modules (`mdp`, `demos`, `config`, `errors`, `grids`, `metrics`) are
+what the API process uses; `metairl_engine.fit` brings in torch.
+"""
+
+from metairl_engine.config import FitConfig
+from metairl_engine.demos import Trajectory, validate_trajectories
+from metairl_engine.errors import Cancelled, EngineError, InvalidInput, Issue
+from metairl_engine.mdp import MDP, Layout, SparseTransitions
+
+__all__ = [
+    "MDP",
+    "Cancelled",
+    "EngineError",
+    "FitConfig",
+    "InvalidInput",
+    "Issue",
+    "Layout",
+    "SparseTransitions",
+    "Trajectory",
+    "validate_trajectories",
+]

@@ -1,0 +1,100 @@
+"""`FitConfig`: every knob of a fit in one frozen dataclass, stored with each job's results.
+
+numpy-free and torch-free so the API can validate a job's config (API.md §5 contract names) without
+loading the engine. Field docstrings are the reference documentation of each setting.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+from typing import Any, Literal
+
+from metairl_engine.errors import InvalidInput, Issue, check
+
+Method = Literal["meta_irl", "maxent"]
+Sharing = Literal["none", "l2", "huber", "std", "entropy"]
+SharingStates = Literal["all", "visited"]
+Backup = Literal["max", "logsumexp", "bgi"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class FitConfig:
+    """How to learn rewards from one demonstrator's tasks (defaults are the recommended settings)."""
+
+    method: Method = "meta_irl"
+    """``meta_irl``: the paper's VR-function method with reward sharing; ``maxent``: tabular
+    maximum-causal-entropy IRL by soft value iteration (reference solver, one task at a time)."""
+
+    sharing: Sharing = "huber"
+    """Reward-sharing loss between each task reward r_i and the baseline r_b (paper §III-C)."""
+
+    sharing_weight: float = 1.0
+    """Weight of the sharing loss relative to the IRL loss (mean NLL per demonstrated step)."""
+
+    sharing_states: SharingStates = "all"
+    """Evaluate the sharing loss on all states or only on states visited by the task's demonstrations."""
+
+    backup: Backup = "max"
+    """Bellman backup V(s) from Q(s, ·): max (paper eq. 5), logsumexp (MaxEnt) or BGI's (1/k)·logsumexp(k·Q)."""
+
+    bgi_k: float = 10.0
+    """Sharpness k of the BGI backup (only with ``backup="bgi"``)."""
+
+    confidence: float = 1.0
+    """The paper's b: demonstrated actions follow softmax(b·Q(s, ·)) (paper eq. 8)."""
+
+    hidden: tuple[int, ...] = (100, 50, 25)
+    """Hidden layer widths of each VR network and of the baseline network."""
+
+    learning_rate: float = 0.01
+    """Adam's learning rate (paper: 0.01)."""
+
+    max_steps: int = 500
+    """Upper bound on optimisation steps."""
+
+    tolerance: float = 1e-6
+    """Stop when the relative change of the training loss over a step falls below this."""
+
+    holdout_fraction: float = 0.2
+    """Fraction of each task's demonstrated steps held out to choose the stopping step by held-out
+    likelihood (0 disables; then the fit runs to ``max_steps`` or ``tolerance``)."""
+
+    seed: int = 0
+    """Seed of every random choice (initial weights, hold-out split): same seed, same result."""
+
+    def __post_init__(self) -> None:
+        issues: list[Issue] = []
+
+        def need(ok: bool, name: str, message: str) -> None:
+            if not ok:
+                issues.append(Issue(f"/config/{name}", message))
+
+        need(self.sharing_weight >= 0, "sharing_weight", "must be ≥ 0")
+        need(self.bgi_k > 0, "bgi_k", "must be > 0")
+        need(self.confidence > 0, "confidence", "must be > 0")
+        need(all(isinstance(h, int) and h > 0 for h in self.hidden), "hidden", "must be positive integers")
+        need(len(self.hidden) <= 8, "hidden", "at most 8 hidden layers")
+        need(0 < self.learning_rate <= 1, "learning_rate", "must be in (0, 1]")
+        need(1 <= self.max_steps <= 100_000, "max_steps", "must be in 1..100000")
+        need(self.tolerance >= 0, "tolerance", "must be ≥ 0")
+        need(0 <= self.holdout_fraction < 1, "holdout_fraction", "must be in [0, 1)")
+        need(self.seed >= 0, "seed", "must be ≥ 0")
+        check(issues)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (stored with every job and reward)."""
+        d = asdict(self)
+        d["hidden"] = list(self.hidden)
+        return d
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> FitConfig:
+        """Build from JSON, rejecting unknown keys with a pointer to them."""
+        known = {f.name for f in fields(cls)}
+        unknown = [k for k in data if k not in known]
+        if unknown:
+            raise InvalidInput([Issue(f"/config/{k}", "is not a known setting") for k in unknown])
+        kwargs = dict(data)
+        if "hidden" in kwargs and isinstance(kwargs["hidden"], list):
+            kwargs["hidden"] = tuple(kwargs["hidden"])
+        return cls(**kwargs)

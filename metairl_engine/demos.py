@@ -1,0 +1,97 @@
+"""Demonstrations: trajectories of (state, action) pairs per task, checked against the task's MDP.
+
+numpy only, shared by the API (validation at upload) and the fit (stacked state-action pairs).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from metairl_engine.errors import Issue, check
+from metairl_engine.mdp import MAX_ISSUES, MDP
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """One demonstration: ``states`` (T,) or (T+1,) int64 and ``actions`` (T,) int64.
+
+    ``states[t]`` is where action ``actions[t]`` was taken; an extra final state (no action) may follow.
+    """
+
+    states: np.ndarray
+    actions: np.ndarray
+
+    @classmethod
+    def of(cls, states: Sequence[int] | np.ndarray, actions: Sequence[int] | np.ndarray) -> Trajectory:
+        """Build from any integer sequences (no checks: see `validate_trajectories`)."""
+        return cls(np.asarray(states, dtype=np.int64), np.asarray(actions, dtype=np.int64))
+
+
+def validate_trajectories(
+    mdp: MDP, trajectories: Sequence[Trajectory], *, pointer: str = "/trajectories"
+) -> None:
+    """Raise `InvalidInput` naming trajectory and step of every bad index or impossible step.
+
+    Checks: at least one trajectory; each has ≥ 1 action; len(states) is len(actions) or one more;
+    indices in range; and ``P(states[t+1] | states[t], actions[t]) > 0`` wherever a next state exists.
+    All checks are vectorised over the concatenated steps (no Python loop over steps).
+    """
+    issues: list[Issue] = []
+    if len(trajectories) == 0:
+        check([Issue(pointer, "needs at least one trajectory")])
+    for j, tr in enumerate(trajectories):
+        at = f"{pointer}/{j}"
+        if tr.states.ndim != 1 or tr.actions.ndim != 1:
+            issues.append(Issue(at, "states and actions must be flat lists of integers"))
+        elif len(tr.actions) == 0:
+            issues.append(Issue(f"{at}/actions", "needs at least one action"))
+        elif len(tr.states) not in (len(tr.actions), len(tr.actions) + 1):
+            issues.append(
+                Issue(
+                    f"{at}/states",
+                    f"has {len(tr.states)} entries for {len(tr.actions)} actions; "
+                    "give one state per action, optionally plus the final state",
+                )
+            )
+        for name, arr, hi in (("states", tr.states, mdp.n_states), ("actions", tr.actions, mdp.n_actions)):
+            if arr.ndim == 1:
+                for t in np.flatnonzero((arr < 0) | (arr >= hi))[:MAX_ISSUES]:
+                    issues.append(Issue(f"{at}/{name}/{t}", f"{arr[t]} is outside 0..{hi - 1} (step {t})"))
+        if len(issues) >= MAX_ISSUES:
+            break
+    check(issues[:MAX_ISSUES])
+
+    # Every step that has a successor: (trajectory j, step t) with t + 1 < len(states).
+    traj_ids, steps, s, a, s_next = [], [], [], [], []
+    for j, tr in enumerate(trajectories):
+        n = min(len(tr.actions), len(tr.states) - 1)
+        if n > 0:
+            traj_ids.append(np.full(n, j))
+            steps.append(np.arange(n))
+            s.append(tr.states[:n])
+            a.append(tr.actions[:n])
+            s_next.append(tr.states[1 : n + 1])
+    if not s:
+        return
+    ok = mdp.possible(np.concatenate(s), np.concatenate(a), np.concatenate(s_next))
+    cat = [np.concatenate(x) for x in (traj_ids, steps, s, a, s_next)]
+    for k in np.flatnonzero(~ok)[:MAX_ISSUES]:
+        j, t, st, ac, nx = (int(c[k]) for c in cat)
+        issues.append(
+            Issue(
+                f"{pointer}/{j}/states/{t + 1}",
+                f"trajectory {j} step {t}: action {ac} from state {st} cannot lead to state {nx} "
+                "(transition probability 0)",
+            )
+        )
+    check(issues)
+
+
+def state_action_pairs(trajectories: Sequence[Trajectory]) -> tuple[np.ndarray, np.ndarray]:
+    """All demonstrated (state, action) pairs of a task, concatenated: two (N,) int64 arrays."""
+    states = np.concatenate([tr.states[: len(tr.actions)] for tr in trajectories])
+    actions = np.concatenate([tr.actions for tr in trajectories])
+    return states.astype(np.int64), actions.astype(np.int64)

@@ -1,0 +1,42 @@
+"""The engine's exception hierarchy: every bad input is an `InvalidInput` listing JSON-pointer issues."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Issue:
+    """One thing wrong with an input: where (an RFC 6901 JSON pointer) and what, in a sentence."""
+
+    pointer: str
+    message: str
+
+
+class EngineError(Exception):
+    """Base class of everything the engine raises on purpose."""
+
+
+class InvalidInput(EngineError, ValueError):
+    """An MDP, demonstration set or config that cannot be used; `issues` says where and why."""
+
+    def __init__(self, issues: Sequence[Issue]):
+        self.issues: tuple[Issue, ...] = tuple(issues)
+        shown = "; ".join(f"{i.pointer or '/'}: {i.message}" for i in self.issues[:5])
+        more = f" (and {len(self.issues) - 5} more)" if len(self.issues) > 5 else ""
+        super().__init__(shown + more)
+
+    def prefixed(self, prefix: str) -> InvalidInput:
+        """The same issues with `prefix` put in front of every pointer (to nest inside a request body)."""
+        return InvalidInput([Issue(prefix + i.pointer, i.message) for i in self.issues])
+
+
+class Cancelled(EngineError):
+    """A fit stopped because its `should_stop` callback said so."""
+
+
+def check(issues: list[Issue]) -> None:
+    """Raise `InvalidInput` if any issue was collected."""
+    if issues:
+        raise InvalidInput(issues)

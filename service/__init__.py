@@ -1,0 +1,1 @@
+"""HTTP API, schemas, auth and the data layer of metairl (never imports torch)."""

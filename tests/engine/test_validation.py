@@ -1,0 +1,104 @@
+"""Validation of MDPs, demonstrations and configs: every error names where and what."""
+
+import numpy as np
+import pytest
+
+from metairl_engine import MDP, FitConfig, InvalidInput, Layout, Trajectory, validate_trajectories
+
+
+def pointers(exc: pytest.ExceptionInfo[InvalidInput]) -> list[str]:
+    return [i.pointer for i in exc.value.issues]
+
+
+def chain(n: int = 4) -> MDP:
+    """A line of n states; action 0 stays, action 1 moves right (the last state stays)."""
+    nxt = np.stack([np.arange(n), np.minimum(np.arange(n) + 1, n - 1)], axis=1)
+    return MDP.build(gamma=0.9, next_state=nxt)
+
+
+def test_deterministic_mdp_infers_sizes() -> None:
+    m = chain(5)
+    assert (m.n_states, m.n_actions, m.is_deterministic, m.n_features) == (5, 2, True, 5)
+
+
+@pytest.mark.parametrize("gamma", [1.0, -0.1, float("nan")])
+def test_gamma_outside_unit_interval_is_rejected(gamma: float) -> None:
+    with pytest.raises(InvalidInput) as exc:
+        MDP.build(gamma=gamma, next_state=[[0]])
+    assert pointers(exc) == ["/gamma"]
+
+
+def test_next_state_out_of_range_names_state_and_action() -> None:
+    with pytest.raises(InvalidInput) as exc:
+        MDP.build(gamma=0.9, next_state=[[0, 1], [1, 7]])
+    assert pointers(exc) == ["/transitions/next_state/1/1"]
+    assert "outside 0..1" in str(exc.value)
+
+
+def test_sparse_probabilities_must_sum_to_one_per_state_action() -> None:
+    with pytest.raises(InvalidInput) as exc:
+        MDP.build(
+            gamma=0.9, n_states=2, n_actions=1, s=[0, 0, 1], a=[0, 0, 0], next=[0, 1, 1], p=[0.5, 0.4, 1]
+        )
+    assert pointers(exc) == ["/transitions/p"]
+    assert "state 0, action 0 sum to 0.9" in str(exc.value)
+
+
+def test_sparse_missing_state_action_is_reported() -> None:
+    with pytest.raises(InvalidInput) as exc:
+        MDP.build(gamma=0.9, n_states=2, n_actions=1, s=[0], a=[0], next=[1], p=[1.0])
+    assert "no transitions given" in str(exc.value)
+
+
+def test_features_with_nan_point_at_the_cell() -> None:
+    with pytest.raises(InvalidInput) as exc:
+        MDP.build(gamma=0.9, next_state=[[0], [1]], features=[[0.0, 1.0], [np.nan, 0.0]])
+    assert pointers(exc) == ["/features/1/0"]
+
+
+def test_layout_must_cover_all_states() -> None:
+    with pytest.raises(InvalidInput) as exc:
+        MDP.build(gamma=0.9, next_state=[[0], [1], [2]], layout=Layout(width=2, height=2))
+    assert pointers(exc) == ["/layout"]
+
+
+def test_impossible_step_names_trajectory_and_step() -> None:
+    m = chain(4)
+    good = Trajectory.of([0, 1, 2], [1, 1])
+    bad = Trajectory.of([0, 1, 3], [1, 1])
+    validate_trajectories(m, [good])
+    with pytest.raises(InvalidInput) as exc:
+        validate_trajectories(m, [good, bad])
+    assert pointers(exc) == ["/trajectories/1/states/2"]
+    assert "trajectory 1 step 1" in str(exc.value)
+
+
+def test_out_of_range_action_names_trajectory_and_step() -> None:
+    with pytest.raises(InvalidInput) as exc:
+        validate_trajectories(chain(4), [Trajectory.of([0, 1], [1, 5])])
+    assert pointers(exc) == ["/trajectories/0/actions/1"]
+
+
+def test_sparse_mdp_step_check_uses_positive_probabilities() -> None:
+    m = MDP.build(
+        gamma=0.9,
+        n_states=3,
+        n_actions=1,
+        s=[0, 0, 1, 2],
+        a=[0, 0, 0, 0],
+        next=[1, 2, 2, 2],
+        p=[0.5, 0.5, 1, 1],
+    )
+    validate_trajectories(m, [Trajectory.of([0, 2, 2], [0, 0])])
+    with pytest.raises(InvalidInput):
+        validate_trajectories(m, [Trajectory.of([1, 0], [0])])
+
+
+def test_config_rejects_bad_values_and_unknown_keys() -> None:
+    with pytest.raises(InvalidInput) as exc:
+        FitConfig(learning_rate=0.0, max_steps=0)
+    assert pointers(exc) == ["/config/learning_rate", "/config/max_steps"]
+    with pytest.raises(InvalidInput) as exc:
+        FitConfig.from_dict({"sharing_wieght": 1.0})
+    assert pointers(exc) == ["/config/sharing_wieght"]
+    assert FitConfig.from_dict({"hidden": [4, 2]}).hidden == (4, 2)
