@@ -9,16 +9,20 @@ from metairl_engine.config import FitConfig
 from metairl_engine.demos import Trajectory, validate_trajectories
 from metairl_engine.errors import Cancelled, EngineError, InvalidInput, Issue
 from metairl_engine.mdp import MDP, Layout, SparseTransitions
+from metairl_engine.results import FitResult, Progress, TaskData
 
 __all__ = [
     "MDP",
     "Cancelled",
     "EngineError",
     "FitConfig",
+    "FitResult",
     "InvalidInput",
     "Issue",
     "Layout",
+    "Progress",
     "SparseTransitions",
+    "TaskData",
     "Trajectory",
     "validate_trajectories",
 ]

@@ -29,7 +29,8 @@ class FitConfig:
     """Reward-sharing loss between each task reward r_i and the baseline r_b (paper §III-C)."""
 
     sharing_weight: float = 1.0
-    """Weight of the sharing loss relative to the IRL loss (mean NLL per demonstrated step)."""
+    """Weight of the sharing loss relative to the IRL loss; both are per-task means (NLL per demonstrated
+    step, sharing loss per compared state), so the weight does not depend on the numbers of states or steps."""
 
     sharing_states: SharingStates = "all"
     """Evaluate the sharing loss on all states or only on states visited by the task's demonstrations."""
@@ -49,15 +50,20 @@ class FitConfig:
     learning_rate: float = 0.01
     """Adam's learning rate (paper: 0.01)."""
 
-    max_steps: int = 500
-    """Upper bound on optimisation steps."""
+    max_steps: int = 1000
+    """Upper bound on optimisation steps (the held-out rule usually stops earlier without sharing)."""
 
     tolerance: float = 1e-6
     """Stop when the relative change of the training loss over a step falls below this."""
 
     holdout_fraction: float = 0.2
     """Fraction of each task's demonstrated steps held out to choose the stopping step by held-out
-    likelihood (0 disables; then the fit runs to ``max_steps`` or ``tolerance``)."""
+    likelihood, never by the true reward: the kept parameters are those of the last step whose held-out
+    NLL is within one standard error of the best (see fit.HeldOutStopper). 0 disables the hold-out; the
+    fit then runs on all steps to ``max_steps`` or ``tolerance``."""
+
+    patience: int = 100
+    """Stop this many steps after the last step kept by the held-out rule (only with a hold-out; 0: never)."""
 
     seed: int = 0
     """Seed of every random choice (initial weights, hold-out split): same seed, same result."""
@@ -78,6 +84,7 @@ class FitConfig:
         need(1 <= self.max_steps <= 100_000, "max_steps", "must be in 1..100000")
         need(self.tolerance >= 0, "tolerance", "must be ≥ 0")
         need(0 <= self.holdout_fraction < 1, "holdout_fraction", "must be in [0, 1)")
+        need(self.patience >= 0, "patience", "must be ≥ 0")
         need(self.seed >= 0, "seed", "must be ≥ 0")
         check(issues)
 

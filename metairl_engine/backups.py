@@ -1,0 +1,90 @@
+"""Q from the VR function (paper eq. 6) and the Bellman backups V = backup_a Q (eq. 7 and its variants).
+
+`QRows` precomputes, for a fixed list of (task, state) rows, how to read Q(s, ·) off the VR values:
+a GATHER of f[next_state] when every task is deterministic, one torch sparse matmul otherwise. Rows of
+several tasks are batched in one op; the VR values are only ever needed on a subset U of the states
+(``columns`` maps a state to its position in U).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+
+from metairl_engine.config import Backup
+from metairl_engine.mdp import MDP
+from metairl_engine.planning import transition_matrix
+
+
+def backup(q: torch.Tensor, *, kind: Backup, bgi_k: float) -> torch.Tensor:
+    """V(s) from Q(s, ·) over the last axis: max (eq. 7), logsumexp (MaxEnt) or (1/k)·logsumexp(k·Q) (BGI)."""
+    if kind == "max":
+        return q.amax(dim=-1)
+    if kind == "logsumexp":
+        return torch.logsumexp(q, dim=-1)
+    return torch.logsumexp(bgi_k * q, dim=-1) / bgi_k
+
+
+class QRows:
+    """Q_t(s, ·) = Σ_s' P_t(s'|s, ·) f_t(s') for fixed rows (task t, state s) (eq. 6); no state loop."""
+
+    def __init__(
+        self,
+        mdps: Sequence[MDP],
+        tasks: np.ndarray,
+        states: np.ndarray,
+        *,
+        columns: np.ndarray,
+        n_columns: int,
+    ):
+        n_actions = mdps[0].n_actions
+        self.n_rows, self.n_actions = len(states), n_actions
+        self.index: torch.Tensor | None = None
+        self.matrix: torch.Tensor | None = None
+        if all(m.next_state is not None for m in mdps):
+            table = np.stack([m.next_state for m in mdps if m.next_state is not None])  # (T, S, A)
+            nxt = table[tasks, states]  # (N, A)
+            self.index = torch.from_numpy(tasks[:, None] * n_columns + columns[nxt]).reshape(-1)
+            return
+        rows, cols, vals = [], [], []
+        for t, mdp in enumerate(mdps):
+            mine = np.flatnonzero(tasks == t)
+            if mine.size == 0:
+                continue
+            sa = (states[mine, None] * n_actions + np.arange(n_actions)).reshape(-1)
+            sub = transition_matrix(mdp)[sa].tocoo()
+            rows.append(((mine[:, None] * n_actions + np.arange(n_actions)).reshape(-1))[sub.row])
+            cols.append(t * n_columns + columns[sub.col])
+            vals.append(sub.data)
+        idx = torch.from_numpy(np.stack([np.concatenate(rows), np.concatenate(cols)]).astype(np.int64))
+        self.matrix = torch.sparse_coo_tensor(
+            idx,
+            torch.from_numpy(np.concatenate(vals).astype(np.float32)),
+            (self.n_rows * n_actions, len(mdps) * n_columns),
+            check_invariants=False,
+        ).coalesce()
+
+    def __call__(self, f: torch.Tensor) -> torch.Tensor:
+        """Q (N, A) for the rows, from VR values ``f`` (T, |U|)."""
+        flat = f.reshape(-1)
+        if self.index is not None:
+            return flat[self.index].reshape(self.n_rows, self.n_actions)
+        assert self.matrix is not None
+        return torch.sparse.mm(self.matrix, flat.unsqueeze(1)).reshape(self.n_rows, self.n_actions)
+
+
+def successors(mdps: Sequence[MDP], tasks: np.ndarray, states: np.ndarray) -> np.ndarray:
+    """Sorted unique states reachable in one step from the rows (task, state): where Q needs f."""
+    found = []
+    for t, mdp in enumerate(mdps):
+        mine = states[tasks == t]
+        if mine.size == 0:
+            continue
+        if mdp.next_state is not None:
+            found.append(mdp.next_state[mine].reshape(-1))
+        else:
+            sa = (mine[:, None] * mdp.n_actions + np.arange(mdp.n_actions)).reshape(-1)
+            found.append(transition_matrix(mdp)[sa].indices)
+    return np.unique(np.concatenate(found)).astype(np.int64)

@@ -1,0 +1,50 @@
+"""T multilayer perceptrons evaluated as one: stacked weights (T, in, out) and batched matrix products.
+
+Every task's VR function f_i (paper eq. 5) is one member of a `StackedMLP`; the baseline reward r_b is a
+`StackedMLP` with one member. Tabular MDPs (no features) use an embedding table as first layer, which is
+what a linear layer on one-hot features computes, without materialising the (S, S) one-hot matrix.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import torch
+from torch import nn
+
+
+class StackedMLP(nn.Module):
+    """``n_members`` independent MLPs ``in → hidden… → 1`` with ReLU, evaluated on shared inputs."""
+
+    def __init__(
+        self,
+        *,
+        n_members: int,
+        n_inputs: int,
+        hidden: tuple[int, ...],
+        tabular: bool,
+        generator: torch.Generator,
+    ):
+        super().__init__()
+        self.tabular = tabular
+        widths = [n_inputs, *hidden, 1]
+        self.weights = nn.ParameterList()
+        self.biases = nn.ParameterList()
+        for layer, (fan_in, fan_out) in enumerate(itertools.pairwise(widths)):
+            # nn.Linear's default initialisation U(−1/√fan_in, 1/√fan_in), per member; an embedding row
+            # stands for a one-hot input, whose effective fan-in is 1.
+            bound = 1.0 / math.sqrt(1 if (tabular and layer == 0) else fan_in)
+            w = (torch.rand(n_members, fan_in, fan_out, generator=generator) * 2 - 1) * bound
+            b = (torch.rand(n_members, 1, fan_out, generator=generator) * 2 - 1) * bound
+            self.weights.append(nn.Parameter(w))
+            self.biases.append(nn.Parameter(b))
+
+    def forward(self, inputs: torch.Tensor) -> torch.Tensor:
+        """Outputs (T, N) for N states: ``inputs`` is (N, F) features, or (N,) state indices when tabular."""
+        layers = list(zip(self.weights, self.biases, strict=True))
+        w0, b0 = layers[0]
+        h = (w0[:, inputs, :] if self.tabular else torch.matmul(inputs, w0)) + b0
+        for w, b in layers[1:]:
+            h = torch.baddbmm(b, torch.relu_(h), w)  # in place: h is no saved tensor of its producer
+        return h.squeeze(-1)

@@ -1,0 +1,124 @@
+"""Planning on a known reward (numpy/scipy only): value iteration with max or soft backups, policy evaluation.
+
+Shared by the terrain demonstrator, the tabular MaxEnt solver and the metrics (expected value difference).
+Rewards are state rewards collected on arrival, as in the paper's Bellman equation (eq. 2–3):
+``Q(s, a) = Σ_s' P(s'|s, a) [r(s') + γ V(s')]``.
+"""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.special import logsumexp, softmax
+
+from metairl_engine.mdp import MDP
+
+PlanBackup = Literal["max", "soft"]
+
+
+_MATRICES: weakref.WeakKeyDictionary[MDP, sp.csr_matrix] = weakref.WeakKeyDictionary()
+"""Transition matrices already built, per (immutable) MDP, dropped with the MDP."""
+
+
+def transition_matrix(mdp: MDP) -> sp.csr_matrix:
+    """P as a sparse (S·A, S) matrix: row ``s*A + a`` holds P(· | s, a) (duplicates summed); cached."""
+    if mdp not in _MATRICES:
+        _MATRICES[mdp] = _build_transition_matrix(mdp)
+    return _MATRICES[mdp]
+
+
+def _build_transition_matrix(mdp: MDP) -> sp.csr_matrix:
+    """Build `transition_matrix`'s result."""
+    n_rows = mdp.n_states * mdp.n_actions
+    if mdp.next_state is not None:
+        cols = mdp.next_state.reshape(-1).astype(np.int64)
+        return sp.csr_matrix(
+            (np.ones(n_rows), (np.arange(n_rows), cols)), shape=(n_rows, mdp.n_states), dtype=np.float64
+        )
+    assert mdp.sparse is not None
+    t = mdp.sparse
+    rows = t.s.astype(np.int64) * mdp.n_actions + t.a
+    return sp.csr_matrix(
+        (t.p.astype(np.float64), (rows, t.next.astype(np.int64))),
+        shape=(n_rows, mdp.n_states),
+        dtype=np.float64,
+    )
+
+
+@dataclass(frozen=True)
+class Plan:
+    """The solution of one planning problem: ``value`` (S,), ``q`` (S, A), ``policy`` (S, A), iterations used."""
+
+    value: np.ndarray
+    q: np.ndarray
+    policy: np.ndarray
+    iterations: int
+
+
+def value_iteration(
+    transitions: sp.csr_matrix,
+    reward: np.ndarray,
+    *,
+    gamma: float,
+    backup: PlanBackup = "soft",
+    confidence: float = 1.0,
+    tolerance: float = 1e-6,
+    max_iterations: int = 10_000,
+    initial_value: np.ndarray | None = None,
+) -> Plan:
+    """Iterate ``V ← backup_a Q(s, a)`` to a fixed point; the policy is softmax(b·Q) (soft) or greedy (max).
+
+    Soft backup: ``V = (1/b) log Σ_a exp(b·Q)`` (maximum causal entropy, b = ``confidence``).
+    """
+    n_states = transitions.shape[1]
+    n_actions = transitions.shape[0] // n_states
+    r = np.asarray(reward, dtype=np.float64)
+    v = np.zeros(n_states) if initial_value is None else np.asarray(initial_value, dtype=np.float64)
+    q = np.zeros((n_states, n_actions))
+    iterations, delta = 0, np.inf
+    while delta >= tolerance and iterations < max_iterations:
+        q = (transitions @ (r + gamma * v)).reshape(n_states, n_actions)
+        new_v = q.max(axis=1) if backup == "max" else logsumexp(confidence * q, axis=1) / confidence
+        delta, v, iterations = float(np.max(np.abs(new_v - v))), new_v, iterations + 1
+    q = (transitions @ (r + gamma * v)).reshape(n_states, n_actions)
+    if backup == "max":
+        policy = (q >= q.max(axis=1, keepdims=True) - 1e-12).astype(np.float64)
+        policy /= policy.sum(axis=1, keepdims=True)
+    else:
+        policy = softmax(confidence * q, axis=1)
+    return Plan(value=v, q=q, policy=policy, iterations=iterations)
+
+
+def policy_matrix(transitions: sp.csr_matrix, policy: np.ndarray) -> sp.csr_matrix:
+    """The state-to-state matrix ``P_π[s, s'] = Σ_a π(a|s) P(s'|s, a)`` (S, S) of a fixed policy."""
+    n_states, n_actions = policy.shape
+    rows = np.repeat(np.arange(n_states), n_actions)
+    weights = sp.csr_matrix(
+        (policy.reshape(-1), (rows, np.arange(n_states * n_actions))), shape=(n_states, n_states * n_actions)
+    )
+    return sp.csr_matrix(weights @ transitions)
+
+
+def policy_evaluation(
+    transitions: sp.csr_matrix,
+    reward: np.ndarray,
+    policy: np.ndarray,
+    *,
+    gamma: float,
+    tolerance: float = 1e-6,
+    max_iterations: int = 10_000,
+) -> np.ndarray:
+    """Value (S,) of following ``policy`` (S, A) under ``reward`` (S,): ``V = P_π (r + γV)``."""
+    p_pi = policy_matrix(transitions, policy)
+    r = np.asarray(reward, dtype=np.float64)
+    v = np.zeros(policy.shape[0])
+    for _ in range(max_iterations):
+        new_v = p_pi @ (r + gamma * v)
+        if float(np.max(np.abs(new_v - v))) < tolerance:
+            return np.asarray(new_v)
+        v = new_v
+    return np.asarray(v)

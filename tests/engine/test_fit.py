@@ -1,0 +1,216 @@
+"""The meta-IRL fit: exact gradients, recovery, sharing, determinism, batching, transitions, callbacks, inputs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from metairl_engine import MDP, FitConfig, InvalidInput, Trajectory
+from metairl_engine.backups import QRows
+from metairl_engine.errors import Cancelled
+from metairl_engine.fit import HeldOutStopper, _Problem, fit, gradient_step, objective
+from metairl_engine.metrics import pearson
+from metairl_engine.networks import StackedMLP
+from metairl_engine.results import Progress
+from metairl_engine.terrain import make_tasks, make_world
+from tests.engine.helpers import as_sparse, small_grid, soft_demos, task
+
+
+def bump_reward(size: int) -> np.ndarray:
+    """A smooth reward on a size×size grid: a bump near one corner, a dip near the other."""
+    ys, xs = np.divmod(np.arange(size * size), size)
+    return np.exp(-((xs - 1) ** 2 + (ys - 3) ** 2) / 3.0) - 0.8 * np.exp(
+        -((xs - 3) ** 2 + (ys - 1) ** 2) / 2.0
+    )
+
+
+def terrain_tasks(*, seed: int, n_tasks: int, n_demos: int) -> tuple[list, list]:
+    """Small terrain world's tasks as (TaskData list, SimTask list)."""
+    world = make_world(size=8, n_hills=3, seed=seed)
+    sims = make_tasks(world, n_tasks=n_tasks, n_demos=n_demos, seed=seed + 100)
+    return [task(world.mdp, s.trajectories) for s in sims], sims
+
+
+class LossModule(torch.nn.Module):
+    """The fit's training loss as a module of both networks' parameters (for functional_call)."""
+
+    def __init__(self, problem: _Problem, vr: StackedMLP, base: StackedMLP, config: FitConfig):
+        super().__init__()
+        self.problem, self.vr, self.base, self.config = problem, vr, base, config
+
+    def forward(self) -> torch.Tensor:
+        f, r_b = self.vr(self.problem.inputs_u), self.base(self.problem.inputs_base)[0]
+        return objective(self.problem, f, r_b, self.config)[0]
+
+
+@pytest.mark.parametrize("sharing", ["l2", "huber", "std", "entropy"])
+def test_loss_gradient_matches_finite_differences_in_float64(sharing: str) -> None:
+    mdp = small_grid(size=3)
+    reward = bump_reward(3)
+    tasks = [task(mdp, soft_demos(mdp, reward, starts=np.array([0, 4]), length=3, seed=s)) for s in (0, 1)]
+    config = FitConfig(sharing=sharing, backup="logsumexp", hidden=(4,), holdout_fraction=0.0)  # type: ignore[arg-type]
+    problem = _Problem(tasks, config)
+    problem.inputs_u, problem.inputs_base = problem.inputs_u.double(), problem.inputs_base.double()
+    problem.gamma = problem.gamma.double()
+    gen = torch.Generator().manual_seed(0)
+    vr = StackedMLP(n_members=2, n_inputs=2, hidden=(4,), tabular=False, generator=gen).double()
+    base = StackedMLP(n_members=1, n_inputs=2, hidden=(4,), tabular=False, generator=gen).double()
+    module = LossModule(problem, vr, base, config)
+    names = [n for n, _ in module.named_parameters()]
+    params = tuple(p.detach().clone().requires_grad_() for p in module.parameters())
+
+    def loss_of(*flat: torch.Tensor) -> torch.Tensor:
+        return torch.func.functional_call(module, dict(zip(names, flat, strict=True)), ())
+
+    assert torch.autograd.gradcheck(loss_of, params, eps=1e-6, atol=1e-5)
+
+
+def test_recovers_a_known_reward_from_demonstrations_starting_everywhere() -> None:
+    mdp = small_grid(size=5)
+    reward = bump_reward(5)
+    starts = np.repeat(np.arange(mdp.n_states), 20)
+    demos = soft_demos(mdp, reward, starts=starts, length=5, seed=0, confidence=3.0)
+    config = FitConfig(
+        sharing="none", backup="logsumexp", confidence=3.0, max_steps=400, holdout_fraction=0.0
+    )
+    result = fit([task(mdp, demos)], config)
+    assert pearson(result.rewards[0], reward) >= 0.9
+
+
+def test_sharing_beats_no_sharing_with_few_demonstrations() -> None:
+    gains = []
+    for seed in range(3):
+        tasks, sims = terrain_tasks(seed=seed, n_tasks=4, n_demos=2)
+        scores = {}
+        for sharing in ("none", "huber"):
+            r = fit(tasks, FitConfig(sharing=sharing, max_steps=300))
+            scores[sharing] = np.mean(
+                [
+                    pearson(r.rewards[i], s.true_reward, mask=np.arange(len(s.true_reward)) != s.goal)
+                    for i, s in enumerate(sims)
+                ]
+            )
+        gains.append(scores["huber"] - scores["none"])
+    assert np.mean(gains) > 0.05
+
+
+def test_same_seed_gives_bit_identical_results_and_another_seed_does_not() -> None:
+    tasks, _ = terrain_tasks(seed=0, n_tasks=2, n_demos=2)
+    config = FitConfig(max_steps=30)
+    a, b = fit(tasks, config), fit(tasks, config)
+    c = fit(tasks, FitConfig(max_steps=30, seed=1))
+    assert np.array_equal(a.rewards, b.rewards) and np.array_equal(a.baseline, b.baseline)
+    assert [h.loss for h in a.history] == [h.loss for h in b.history]
+    assert not np.array_equal(a.rewards, c.rewards)
+
+
+def test_batched_networks_equal_each_network_alone() -> None:
+    features = torch.rand(7, 3, generator=torch.Generator().manual_seed(0))
+    batched = StackedMLP(n_members=3, n_inputs=3, hidden=(5, 4), tabular=False, generator=torch.Generator())
+    out = batched(features)
+    for t in range(3):
+        alone = StackedMLP(n_members=1, n_inputs=3, hidden=(5, 4), tabular=False, generator=torch.Generator())
+        with torch.no_grad():
+            for mine, theirs in zip(alone.parameters(), batched.parameters(), strict=True):
+                mine.copy_(theirs[t : t + 1])
+        assert torch.allclose(alone(features)[0], out[t], atol=1e-6)
+
+
+def test_deterministic_and_sparse_transitions_give_the_same_q() -> None:
+    det, other = small_grid(size=4), small_grid(size=4, gamma=0.5)
+    sparse = as_sparse(other)
+    states = np.array([0, 5, 15, 3, 3])
+    tasks = np.array([0, 0, 1, 1, 0])
+    identity = np.arange(det.n_states)
+    f = torch.randn(2, det.n_states, generator=torch.Generator().manual_seed(0))
+    gathered = QRows([det, other], tasks, states, columns=identity, n_columns=det.n_states)(f)
+    multiplied = QRows([det, sparse], tasks, states, columns=identity, n_columns=det.n_states)(f)
+    assert multiplied.shape == (5, det.n_actions)
+    assert torch.allclose(gathered, multiplied)
+    assert det.next_state is not None
+    assert torch.equal(gathered[0], f[0, torch.from_numpy(det.next_state[0]).long()])
+
+
+def test_fit_runs_on_sparse_and_tabular_mdps() -> None:
+    mdp = small_grid(size=3)
+    demos = soft_demos(mdp, bump_reward(3), starts=np.array([0, 8]), length=4, seed=0)
+    tabular = type(mdp)(n_states=9, n_actions=mdp.n_actions, gamma=0.9, next_state=mdp.next_state)
+    result = fit([task(as_sparse(mdp), demos), task(as_sparse(mdp), demos)], FitConfig(max_steps=5))
+    assert result.rewards.shape == (2, 9) and result.policies.shape == (2, 9, mdp.n_actions)
+    assert np.allclose(result.policies.sum(axis=-1), 1.0, atol=1e-5)
+    assert fit([task(tabular, demos)], FitConfig(max_steps=5, sharing_states="visited")).rewards.shape == (
+        1,
+        9,
+    )
+
+
+def test_progress_is_reported_every_step_and_best_step_is_kept() -> None:
+    tasks, _ = terrain_tasks(seed=0, n_tasks=2, n_demos=2)
+    seen: list[Progress] = []
+    result = fit(tasks, FitConfig(max_steps=40, patience=0), progress=seen.append)
+    assert [p.step for p in seen] == list(range(1, 41))
+    assert result.history == seen
+    assert all(p.heldout_nll is not None and p.elapsed_s >= 0 for p in seen)
+    assert result.best_step >= 1 + int(np.argmin(np.array([p.heldout_nll for p in seen], dtype=float)))
+
+
+def test_stopper_keeps_steps_within_one_standard_error_of_the_best_and_then_stops() -> None:
+    stopper = HeldOutStopper(patience=2)
+    assert stopper.update(1, torch.tensor([1.0, 3.0]))  # best 2.0, standard error 1.414 / √2 = 1.0
+    assert stopper.update(2, torch.tensor([2.4, 3.4]))  # 2.9 ≤ 2.0 + 1.0: kept
+    assert not stopper.update(3, torch.tensor([3.0, 3.2]))
+    assert not stopper.should_stop(3)
+    assert not stopper.update(4, torch.tensor([4.0, 4.0]))
+    assert stopper.should_stop(4) and stopper.kept_step == 2
+
+
+def test_should_stop_cancels_the_fit() -> None:
+    tasks, _ = terrain_tasks(seed=0, n_tasks=1, n_demos=1)
+    calls = []
+
+    def stop() -> bool:
+        calls.append(1)
+        return len(calls) > 3
+
+    with pytest.raises(Cancelled):
+        fit(tasks, FitConfig(max_steps=100), should_stop=stop)
+    assert len(calls) == 4
+
+
+def test_tasks_with_other_states_or_features_are_rejected_with_pointers() -> None:
+    a, b = small_grid(size=3), small_grid(size=4)
+    demo = [Trajectory.of([0, 1], [0])]
+    with pytest.raises(InvalidInput) as exc:
+        fit([task(a, demo), task(a, demo), task(b, demo)])
+    assert [i.pointer for i in exc.value.issues] == ["/tasks/2/mdp"]
+    assert "has 16 states but task 0 has 9" in str(exc.value)
+    shifted = MDP.build(gamma=0.9, next_state=a.next_state, features=np.asarray(a.features) + 1)
+    with pytest.raises(InvalidInput, match="different state features"):
+        fit([task(a, demo), task(shifted, demo)])
+
+
+def test_bad_trajectories_are_rejected_with_task_and_step() -> None:
+    a = small_grid(size=3)
+    with pytest.raises(InvalidInput) as exc:
+        fit([task(a, [Trajectory.of([0, 1], [0])]), task(a, [Trajectory.of([0, 99], [0])])])
+    assert [i.pointer for i in exc.value.issues] == ["/tasks/1/trajectories/0/states/1"]
+
+
+@pytest.mark.parametrize("sharing", ["none", "huber"])
+def test_chunked_gradient_step_equals_the_direct_one(sharing: str) -> None:
+    tasks, _ = terrain_tasks(seed=0, n_tasks=3, n_demos=2)
+    config = FitConfig(sharing=sharing)  # type: ignore[arg-type]
+    problem = _Problem(tasks, config)
+    grads = []
+    for chunk in (10_000, 7):
+        gen = torch.Generator().manual_seed(0)
+        vr = StackedMLP(n_members=3, n_inputs=2, hidden=(8, 4), tabular=False, generator=gen)
+        base = StackedMLP(n_members=1, n_inputs=2, hidden=(8, 4), tabular=False, generator=gen)
+        loss = gradient_step(problem, vr, base, config, chunk=chunk)[0]
+        grads.append((loss, [p.grad for p in [*vr.parameters(), *base.parameters()]]))
+    assert torch.allclose(grads[0][0], grads[1][0])
+    for direct, chunked in zip(grads[0][1], grads[1][1], strict=True):
+        assert (direct is None) == (chunked is None) == (sharing == "none" and direct is None)
+        if direct is not None:
+            assert chunked is not None and torch.allclose(direct, chunked, atol=1e-6)
