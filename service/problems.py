@@ -1,0 +1,186 @@
+"""The service's one exception hierarchy and the handlers that render every error as RFC 9457 problem+json."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from metairl_engine.errors import InvalidInput
+
+PROBLEM_JSON = "application/problem+json"
+log = logging.getLogger(__name__)
+
+
+class ApiError(Exception):
+    """An error with an HTTP status; `errors` lists `{pointer, message}` for validation problems."""
+
+    status = 500
+    type = "internal"
+    title = "Internal server error"
+
+    def __init__(
+        self, detail: str, *, errors: Sequence[dict[str, str]] = (), headers: dict[str, str] | None = None
+    ):
+        super().__init__(detail)
+        self.detail = detail
+        self.errors = list(errors)
+        self.headers = headers or {}
+
+    def body(self) -> dict[str, Any]:
+        """The problem document (RFC 9457 members plus `errors` when there are any)."""
+        out: dict[str, Any] = {
+            "type": problem_type(self.type),
+            "title": self.title,
+            "status": self.status,
+            "detail": self.detail,
+        }
+        if self.errors:
+            out["errors"] = self.errors
+        return out
+
+
+class BadRequest(ApiError):
+    """The request is malformed in a way no field pointer describes (e.g. an unreadable upload)."""
+
+    status, type, title = 400, "bad-request", "Bad request"
+
+
+class Unauthorized(ApiError):
+    """No API key, or one that is unknown or revoked."""
+
+    status, type, title = 401, "unauthorized", "Missing or invalid API key"
+
+
+class NotFound(ApiError):
+    """No such resource in the caller's lab (another lab's resources are reported the same way)."""
+
+    status, type, title = 404, "not-found", "Not found"
+
+
+class Conflict(ApiError):
+    """The request cannot be done in the resource's current state."""
+
+    status, type, title = 409, "conflict", "Conflict"
+
+
+class PayloadTooLarge(ApiError):
+    """The request body is larger than the configured limit."""
+
+    status, type, title = 413, "payload-too-large", "Request body too large"
+
+
+class UnsupportedMediaType(ApiError):
+    """The body's Content-Type is not one the endpoint accepts."""
+
+    status, type, title = 415, "unsupported-media-type", "Unsupported media type"
+
+
+class Unprocessable(ApiError):
+    """The body is well-formed but invalid; `errors` names each offending field, trajectory and step."""
+
+    status, type, title = 422, "validation", "Invalid input"
+
+
+def problem_type(slug: str) -> str:
+    """The `type` URI of a problem (relative, resolved against the service's address)."""
+    return f"/problems/{slug}"
+
+
+def problem_response(error: ApiError) -> JSONResponse:
+    """Render `error` as application/problem+json."""
+    return JSONResponse(
+        error.body(), status_code=error.status, media_type=PROBLEM_JSON, headers=error.headers
+    )
+
+
+def from_invalid_input(error: InvalidInput, *, detail: str = "The input is invalid.") -> Unprocessable:
+    """The engine's `InvalidInput` as a 422 whose errors are its issues."""
+    issues = [{"pointer": i.pointer, "message": i.message} for i in error.issues]
+    first = error.issues[0] if error.issues else None
+    more = f" {first.pointer or '/'}: {first.message}" if first else ""
+    return Unprocessable(f"{detail}{more}", errors=issues)
+
+
+def pointer_from_loc(loc: Sequence[str | int], body: Any) -> str:
+    """An RFC 6901 pointer into `body` for a pydantic error location, skipping union tags and the
+    leading ``body``: steps that do not exist in the input are dropped, except the last (a missing field)."""
+    parts = list(loc[1:] if loc and loc[0] == "body" else loc)
+    out: list[str] = []
+    node = body
+    for i, part in enumerate(parts):
+        last = i == len(parts) - 1
+        found, child = _child(node, part)
+        if found:
+            node = child
+        elif not last:
+            continue
+        out.append(str(part).replace("~", "~0").replace("/", "~1"))
+    return "".join(f"/{p}" for p in out)
+
+
+def _child(node: Any, part: str | int) -> tuple[bool, Any]:
+    """Whether `node` (parsed JSON) has the key or index `part`, and the value there."""
+    if isinstance(node, dict) and part in node:
+        return True, node[part]
+    if isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
+        return True, node[part]
+    return False, None
+
+
+def validation_errors(errors: Sequence[Any], body: Any) -> Unprocessable:
+    """Pydantic errors as a 422: body errors get pointers, query/path/header errors name the parameter."""
+    items: list[dict[str, str]] = []
+    for e in errors:
+        loc = tuple(e.get("loc", ()))
+        message = str(e.get("msg", "is invalid"))
+        if loc and loc[0] in ("query", "path", "header", "cookie"):
+            items.append(
+                {
+                    "pointer": "",
+                    "parameter": str(loc[-1]),
+                    "message": f"{loc[0]} parameter {loc[-1]}: {message}",
+                }
+            )
+        else:
+            items.append({"pointer": pointer_from_loc(loc, body), "message": message})
+    first = items[0] if items else {"pointer": "", "message": "invalid"}
+    where = f"{first['pointer']}: " if first["pointer"] else ""
+    return Unprocessable(f"The request is invalid. {where}{first['message']}", errors=items)
+
+
+def install_handlers(app: FastAPI) -> None:
+    """Map every error the app can raise to problem+json; unexpected exceptions become an opaque 500."""
+
+    @app.exception_handler(ApiError)
+    async def _api_error(_request: Request, exc: ApiError) -> JSONResponse:
+        """Our own errors carry their status and problem fields."""
+        return problem_response(exc)
+
+    @app.exception_handler(InvalidInput)
+    async def _invalid_input(_request: Request, exc: InvalidInput) -> JSONResponse:
+        """The engine's validation errors: 422 with its issues."""
+        return problem_response(from_invalid_input(exc))
+
+    @app.exception_handler(RequestValidationError)
+    async def _request_validation(_request: Request, exc: RequestValidationError) -> JSONResponse:
+        """FastAPI's parameter and body validation: 422 with pointers."""
+        return problem_response(validation_errors(exc.errors(), exc.body))
+
+    @app.exception_handler(StarletteHTTPException)
+    async def _http_error(_request: Request, exc: StarletteHTTPException) -> JSONResponse:
+        """Starlette's HTTP errors (unknown route, wrong method) as problems."""
+        error = ApiError(str(exc.detail), headers=dict(exc.headers or {}))
+        error.status, error.type, error.title = exc.status_code, f"http-{exc.status_code}", str(exc.detail)
+        return problem_response(error)
+
+    @app.exception_handler(Exception)
+    async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
+        """Anything else: logged, and an opaque 500 problem."""
+        log.exception("unhandled error on %s %s", request.method, request.url.path, exc_info=exc)
+        return problem_response(ApiError("An unexpected error occurred; it has been logged."))

@@ -1,0 +1,23 @@
+"""Pieces shared by several resources' bodies: names, free-form metadata, resource timestamps."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Annotated, Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+Name = Annotated[str, Field(min_length=1, max_length=200, description="A human-readable name.")]
+Metadata = Annotated[
+    dict[str, Any] | None,
+    Field(description="Free-form JSON object kept with the resource (e.g. age, condition, session date)."),
+]
+
+
+class Resource(BaseModel):
+    """Fields every resource has: its prefixed `id` (contract) and its creation time (ISO 8601 UTC)."""
+
+    model_config = ConfigDict(from_attributes=True)
+
+    id: str = Field(description="Opaque id with a type prefix.")
+    created_at: datetime

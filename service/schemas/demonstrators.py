@@ -1,0 +1,37 @@
+"""Bodies of `/v1/demonstrators` (API.md §2)."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict, Field
+from pydantic.json_schema import JsonDict
+
+from service.schemas.common import Metadata, Name, Resource
+
+EXAMPLE_IN: JsonDict = {
+    "name": "patient 07",
+    "metadata": {"condition": "spinal cord injury", "session": "2026-01-05"},
+}
+
+
+class DemonstratorIn(BaseModel):
+    """A person, robot or session whose inherent (baseline) reward is to be learned."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [EXAMPLE_IN]})
+
+    name: Name
+    metadata: Metadata = None
+
+
+class DemonstratorOut(Resource):
+    """A demonstrator."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {"id": "dem_Qd8s0Xz4pN2uLm7vB1cE3w", "created_at": "2026-01-05T10:00:00Z", **EXAMPLE_IN}
+            ]
+        }
+    )
+
+    name: str
+    metadata: Metadata = Field(validation_alias="meta")

@@ -1,0 +1,111 @@
+"""Small factories that create resources over HTTP, for the API tests and for other test packages."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from fastapi import FastAPI
+from fastapi.testclient import TestClient
+
+from service.blobs import put_array
+from service.ids import new_id
+from service.models.jobs import Job, Reward
+
+CORRIDOR_NEXT_STATE = [[0, 1], [0, 2], [1, 2]]
+"""A 3-state corridor: action 0 steps left, action 1 steps right (walls keep you in place)."""
+
+
+def created(response: Any, status: int = 201) -> dict[str, Any]:
+    """The JSON of a response that must have `status`, with the body in the failure message."""
+    assert response.status_code == status, response.text
+    body: dict[str, Any] = response.json()
+    return body
+
+
+def make_mdp(client: TestClient, auth: dict[str, str], **overrides: Any) -> dict[str, Any]:
+    """A deterministic corridor MDP (3 states × 2 actions, layout 3×1), fields overridable."""
+    body = {
+        "kind": "explicit",
+        "name": "corridor",
+        "n_states": 3,
+        "n_actions": 2,
+        "gamma": 0.9,
+        "transitions": {"kind": "deterministic", "next_state": CORRIDOR_NEXT_STATE},
+        "layout": {"width": 3, "height": 1},
+    } | overrides
+    return created(client.post("/v1/mdps", json=body, headers=auth))
+
+
+def make_demonstrator(client: TestClient, auth: dict[str, str], name: str = "patient 1") -> dict[str, Any]:
+    """A demonstrator with a little metadata."""
+    return created(
+        client.post("/v1/demonstrators", json={"name": name, "metadata": {"age": 40}}, headers=auth)
+    )
+
+
+def make_task(
+    client: TestClient, auth: dict[str, str], *, demonstrator_id: str | None = None, mdp_id: str | None = None
+) -> dict[str, Any]:
+    """A task (creating a demonstrator and a corridor MDP unless given)."""
+    demonstrator_id = demonstrator_id or make_demonstrator(client, auth)["id"]
+    mdp_id = mdp_id or make_mdp(client, auth)["id"]
+    return created(
+        client.post(
+            f"/v1/demonstrators/{demonstrator_id}/tasks",
+            json={"name": "reach", "mdp_id": mdp_id},
+            headers=auth,
+        )
+    )
+
+
+def add_demonstrations(
+    client: TestClient,
+    auth: dict[str, str],
+    task_id: str,
+    trajectories: list[dict[str, list[int]]] | None = None,
+) -> dict[str, Any]:
+    """Append valid corridor trajectories to a task."""
+    trajectories = trajectories or [
+        {"states": [0, 1, 2], "actions": [1, 1]},
+        {"states": [2, 1], "actions": [0, 0]},
+    ]
+    return created(
+        client.post(f"/v1/tasks/{task_id}/demonstrations", json={"trajectories": trajectories}, headers=auth)
+    )
+
+
+def store_reward(app: FastAPI, *, job_id: str, shape: dict[str, Any]) -> str:
+    """A learned-reward row for `job_id`, written straight to the database (no worker needed); its id."""
+    with app.state.sessionmaker() as session:
+        job = session.get_one(Job, job_id)
+        reward = Reward(
+            id=new_id("rwd"),
+            lab_id=job.lab_id,
+            job_id=job_id,
+            ordinal=0,
+            kind="baseline",
+            n_states=shape["n_states"],
+            n_actions=shape["n_actions"],
+            reward_blob_id=put_array(session, np.zeros(shape["n_states"]), lab_id=job.lab_id),
+        )
+        session.add(reward)
+        session.commit()
+        return reward.id
+
+
+def owned_resource_ids(app: FastAPI, client: TestClient, auth: dict[str, str]) -> dict[str, str]:
+    """One resource of every kind in the lab of `auth`, keyed by the path parameter naming it.
+
+    The cross-lab test fills every `/v1` route's path parameters from this; a route with a parameter
+    missing here fails that test until a factory is added.
+    """
+    task = make_task(client, auth)
+    add_demonstrations(client, auth, task["id"])
+    created(client.put(f"/v1/tasks/{task['id']}/true-reward", json={"values": [0, 0, 1]}, headers=auth), 200)
+    ids = {"mdp_id": task["mdp_id"], "demonstrator_id": task["demonstrator_id"], "task_id": task["id"]}
+    ids["job_id"] = created(
+        client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
+    )["id"]
+    ids["reward_id"] = store_reward(app, job_id=ids["job_id"], shape={"n_states": 3, "n_actions": 2})
+    return ids

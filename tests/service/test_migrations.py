@@ -1,0 +1,58 @@
+"""Alembic: the migrations build exactly the models' schema, go down and up again, and concurrent starts
+migrate safely."""
+
+from __future__ import annotations
+
+import threading
+
+from alembic import command
+from alembic.autogenerate import compare_metadata
+from alembic.migration import MigrationContext
+from sqlalchemy import inspect
+
+import service.models
+from service.db import alembic_config, make_engine, migrate
+from service.settings import Settings
+
+
+def test_migrations_match_the_models(settings: Settings) -> None:
+    engine = make_engine(settings)
+    migrate(engine)
+    with engine.connect() as connection:
+        context = MigrationContext.configure(connection, opts={"compare_type": True})
+        diff = compare_metadata(context, service.models.Base.metadata)
+    engine.dispose()
+    assert diff == []
+
+
+def test_downgrade_to_base_and_upgrade_again(empty_database_url: str) -> None:
+    engine = make_engine(Settings(database_url=empty_database_url))
+    migrate(engine)
+    with engine.connect() as connection:
+        command.downgrade(alembic_config(connection), "base")
+        connection.commit()
+    assert set(inspect(engine).get_table_names()) <= {"alembic_version"}
+    migrate(engine)
+    assert {"labs", "mdps", "tasks", "demonstrations"} <= set(inspect(engine).get_table_names())
+    engine.dispose()
+
+
+def test_processes_starting_together_all_migrate(empty_database_url: str) -> None:
+    engines = [make_engine(Settings(database_url=empty_database_url)) for _ in range(3)]
+    errors: list[BaseException] = []
+
+    def run(index: int) -> None:
+        try:
+            migrate(engines[index])
+        except BaseException as exc:
+            errors.append(exc)
+
+    threads = [threading.Thread(target=run, args=(i,)) for i in range(len(engines))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert errors == []
+    assert "mdps" in inspect(engines[0]).get_table_names()
+    for engine in engines:
+        engine.dispose()
