@@ -1,0 +1,59 @@
+"""Celery broker configuration shared by the API (which only sends) and the worker (which consumes).
+
+Both sides must agree on the URL and transport options, so they are computed here from `Settings`:
+the embedded default is Celery's ``filesystem://`` transport with absolute folders under ``data_dir``;
+Redis gets a visibility timeout longer than the longest job so a running job's message is not redelivered.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from service.settings import Settings
+
+TASK_NAME = "metairl.run_job"
+"""The Celery task that runs one job; the API sends it by this name (it never imports the worker)."""
+
+
+def broker_url(settings: Settings) -> str:
+    """The configured broker URL, or the embedded ``filesystem://`` broker."""
+    return settings.broker_url or "filesystem://"
+
+
+def broker_folder(settings: Settings) -> Path:
+    """The absolute folder of the embedded filesystem broker (messages and exchange tables)."""
+    return (settings.data_dir / "broker").resolve()
+
+
+def transport_options(settings: Settings) -> dict[str, Any]:
+    """Kombu transport options for the configured broker (creating the filesystem folders if needed)."""
+    url = broker_url(settings)
+    if url.startswith("filesystem://"):
+        root = broker_folder(settings)
+        queue, control = root / "queue", root / "control"
+        for folder in (queue, control):
+            folder.mkdir(parents=True, exist_ok=True)
+        return {
+            "data_folder_in": str(queue),
+            "data_folder_out": str(queue),
+            "control_folder": str(control),
+            "polling_interval": 0.5,
+        }
+    if url.startswith(("redis://", "rediss://")):
+        # Unacked messages come back after this long: it must exceed the longest job (hard time limit).
+        return {"visibility_timeout": settings.job_time_limit_s + 3600}
+    return {}
+
+
+def celery_config(settings: Settings) -> dict[str, Any]:
+    """The Celery settings both sides use to reach the broker (no result backend: results go to the database)."""
+    return {
+        "broker_url": broker_url(settings),
+        "broker_transport_options": transport_options(settings),
+        "broker_connection_retry_on_startup": True,
+        "task_default_queue": settings.queue_name,
+        "task_ignore_result": True,
+        "task_serializer": "json",
+        "accept_content": ["json"],
+    }

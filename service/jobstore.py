@@ -1,0 +1,87 @@
+"""Conditional writes to job rows shared by the API, the worker and the reaper.
+
+Every status change is one `UPDATE … WHERE id = ? AND status = <from> [AND …]` checked against
+`JobStatus.can_become`, so concurrent actors (two reapers, a cancel racing a finish, a zombie worker)
+cannot both win: the loser's UPDATE matches no row. The caller commits.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from sqlalchemy import ColumnElement, update
+from sqlalchemy.orm import Session
+
+from service.jobstatus import JobStatus
+from service.models.base import utcnow
+from service.models.jobs import Job, JobEvent
+from service.queue import EnqueueFailed, JobQueue
+
+
+def transition(
+    session: Session,
+    job_id: str,
+    old: JobStatus,
+    new: JobStatus,
+    *,
+    where: tuple[ColumnElement[bool], ...] = (),
+    values: dict[str, Any] | None = None,
+    message: str | None = None,
+) -> int | None:
+    """Move the job from ``old`` to ``new`` if it is still ``old`` (and ``where`` holds); log a status event.
+
+    Returns the job's attempt number after the change, or None when the row no longer matched.
+    Raises `IllegalTransition` for an edge the lifecycle does not have.
+    """
+    old.check(new)
+    now = utcnow()
+    changes: dict[str, Any] = {"status": new.value, "updated_at": now, **(values or {})}
+    if new.is_terminal:
+        changes.setdefault("finished_at", now)
+    attempt = session.execute(
+        update(Job)
+        .where(Job.id == job_id, Job.status == old.value, *where)
+        .values(changes)
+        .returning(Job.attempts)
+        .execution_options(synchronize_session=False)
+    ).scalar_one_or_none()
+    if attempt is not None:
+        session.add(
+            JobEvent(job_id=job_id, at=now, kind="status", attempt=attempt, status=new, message=message)
+        )
+    return attempt
+
+
+def claim(session: Session, job_id: str) -> int | None:
+    """Start the next attempt of a queued job: running, attempts + 1, fresh heartbeat; None if not queued."""
+    now = utcnow()
+    return transition(
+        session,
+        job_id,
+        JobStatus.QUEUED,
+        JobStatus.RUNNING,
+        values={"attempts": Job.attempts + 1, "started_at": now, "heartbeat_at": now, "error": None},
+        message="a worker started the job",
+    )
+
+
+def owned_by(attempt: int) -> tuple[ColumnElement[bool], ...]:
+    """The fence of attempt ``attempt``: only while the row still records this attempt may it write."""
+    return (Job.attempts == attempt,)
+
+
+def send_or_fail(session: Session, queue: JobQueue, job_id: str) -> bool:
+    """Hand a committed queued job to the workers; if the broker refuses, fail the job saying why (commits)."""
+    try:
+        queue.enqueue(job_id)
+    except EnqueueFailed as exc:
+        reason = (
+            f"The job could not be handed to a worker ({exc}). "
+            "Check that the broker is running and reachable, then submit the job again."
+        )
+        transition(
+            session, job_id, JobStatus.QUEUED, JobStatus.FAILED, values={"error": reason}, message=reason
+        )
+        session.commit()
+        return False
+    return True

@@ -1,0 +1,53 @@
+"""The job-queue seam: how the API (and the reaper) hand a committed job to the workers.
+
+`JobQueue` is the protocol; `CeleryJobQueue` sends the ``metairl.run_job`` task BY NAME, so the API
+process imports neither ``worker/`` nor torch. The message carries only the job id: the job row is the
+source of truth, and a message for a job that is no longer queued is simply skipped by the worker.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+from celery import Celery
+
+from service.broker import TASK_NAME, celery_config
+from service.settings import Settings
+
+
+class EnqueueFailed(RuntimeError):
+    """The broker could not take the message; the text says which broker and why."""
+
+
+class JobQueue(Protocol):
+    """Something that delivers a job id to a worker."""
+
+    def enqueue(self, job_id: str) -> None:
+        """Send the job to a worker; raise `EnqueueFailed` if the message could not be sent."""
+        ...
+
+
+class CeleryJobQueue:
+    """Sends ``metairl.run_job(job_id)`` through Celery to the configured broker."""
+
+    def __init__(self, settings: Settings):
+        self._app = Celery("metairl-api", set_as_current=False)
+        self._app.conf.update(celery_config(settings))
+        self._broker = self._app.conf.broker_url
+
+    def enqueue(self, job_id: str) -> None:
+        """Publish the task, retrying the connection briefly before giving up with `EnqueueFailed`."""
+        try:
+            self._app.send_task(
+                TASK_NAME,
+                args=[job_id],
+                retry=True,
+                retry_policy={
+                    "max_retries": 2,
+                    "interval_start": 0.2,
+                    "interval_step": 0.5,
+                    "interval_max": 1,
+                },
+            )
+        except Exception as exc:  # kombu raises many types (OperationalError, OSError, ChannelError…)
+            raise EnqueueFailed(f"could not reach the job broker {self._broker!r}: {exc}") from exc

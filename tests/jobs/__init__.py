@@ -1,0 +1,1 @@
+"""Tests of jobs: lifecycle, workers, progress, cancel, crash recovery, downloads and `metairl serve`."""

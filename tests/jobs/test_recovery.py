@@ -1,0 +1,176 @@
+"""Crash recovery without a worker process: the reaper's decisions and attempt fencing, on a real database.
+
+A "crash" here is a job claimed by an attempt whose heartbeat then stops; the reaper and the fenced
+writes are called directly, on SQLite and PostgreSQL, with the embedded broker as the real queue.
+"""
+
+from __future__ import annotations
+
+import threading
+from datetime import timedelta
+
+import numpy as np
+from fastapi import FastAPI
+from fastapi.testclient import TestClient
+from sqlalchemy import func, select, update
+
+from metairl_engine.config import FitConfig
+from metairl_engine.results import FitResult
+from service.jobstatus import JobStatus
+from service.jobstore import claim
+from service.models.base import utcnow
+from service.models.jobs import Job, JobEvent, Reward
+from service.queue import CeleryJobQueue
+from service.settings import Settings
+from tests.jobs.helpers import QUICK, demonstrated_tasks, submit
+from worker.monitor import Monitor
+from worker.reaper import reap
+from worker.runner import store_results
+
+
+def running_job(app: FastAPI, client: TestClient, auth: dict[str, str], *, stale: bool = True) -> str:
+    """A submitted job claimed by attempt 1, whose heartbeat is a minute old when ``stale``."""
+    demonstrator_id, _ = demonstrated_tasks(client, auth)
+    job_id = submit(client, auth, demonstrator_id, QUICK)["id"]
+    with app.state.sessionmaker() as session:
+        assert claim(session, job_id) == 1
+        if stale:
+            session.execute(
+                update(Job).where(Job.id == job_id).values(heartbeat_at=utcnow() - timedelta(minutes=1))
+            )
+        session.commit()
+    return job_id
+
+
+def job_row(app: FastAPI, job_id: str) -> Job:
+    """The job row as stored now."""
+    with app.state.sessionmaker() as session:
+        return session.get_one(Job, job_id)
+
+
+def fake_result(n_tasks: int, n_states: int = 3, n_actions: int = 2) -> FitResult:
+    """A well-formed result of the right shapes (the fencing under test does not care about values)."""
+    rng = np.random.default_rng(0)
+    policies = rng.random((n_tasks, n_states, n_actions)).astype(np.float32)
+    return FitResult(
+        baseline=rng.random(n_states).astype(np.float32),
+        rewards=rng.random((n_tasks, n_states)).astype(np.float32),
+        values=rng.random((n_tasks, n_states)).astype(np.float32),
+        policies=policies / policies.sum(axis=2, keepdims=True),
+        history=[],
+        best_step=0,
+        config=FitConfig(),
+    )
+
+
+def test_stale_running_job_is_requeued_once_even_with_concurrent_reapers(
+    app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
+) -> None:
+    job_id = running_job(app, client, auth)
+    queue = CeleryJobQueue(settings)
+    results: list[list[object]] = []
+    reapers = [
+        threading.Thread(target=lambda: results.append(list(reap(app.state.sessionmaker, settings, queue))))
+        for _ in range(4)
+    ]
+    for thread in reapers:
+        thread.start()
+    for thread in reapers:
+        thread.join()
+    acted = [r for batch in results for r in batch if getattr(r, "job_id", None) == job_id]
+    assert len(acted) == 1
+    row = job_row(app, job_id)
+    assert (row.status, row.attempts, row.heartbeat_at) == ("queued", 1, None)
+    with app.state.sessionmaker() as session:
+        messages = (
+            session.execute(
+                select(JobEvent.message).where(
+                    JobEvent.job_id == job_id, JobEvent.status == "queued", JobEvent.attempt == 1
+                )
+            )
+            .scalars()
+            .all()
+        )
+    assert len(messages) == 1
+    assert "stopped sending heartbeats" in messages[0] and "attempt 2 of 3" in messages[0]
+    with app.state.sessionmaker() as session:  # the re-queued job can be claimed by the next attempt
+        assert claim(session, job_id) == 2
+
+
+def test_job_with_a_fresh_heartbeat_is_left_alone(
+    app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
+) -> None:
+    job_id = running_job(app, client, auth, stale=False)
+    assert reap(app.state.sessionmaker, settings, CeleryJobQueue(settings)) == []
+    assert job_row(app, job_id).status == "running"
+
+
+def test_job_out_of_attempts_fails_with_a_sentence_saying_why(
+    app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
+) -> None:
+    job_id = running_job(app, client, auth)
+    with app.state.sessionmaker() as session:
+        session.execute(update(Job).where(Job.id == job_id).values(max_attempts=1))
+        session.commit()
+    [reaped] = reap(app.state.sessionmaker, settings, CeleryJobQueue(settings))
+    assert reaped.status is JobStatus.FAILED
+    job = client.get(f"/v1/jobs/{job_id}", headers=auth).json()
+    assert job["status"] == "failed"
+    assert job["error"].startswith("The job was started 1 times and each time its worker stopped responding")
+    assert "submit it again" in job["error"]
+
+
+def test_stale_job_with_cancel_requested_ends_cancelled(
+    app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
+) -> None:
+    job_id = running_job(app, client, auth)
+    assert client.post(f"/v1/jobs/{job_id}/cancel", headers=auth).json()["cancel_requested"] is True
+    [reaped] = reap(app.state.sessionmaker, settings, CeleryJobQueue(settings))
+    assert reaped.status is JobStatus.CANCELLED
+    assert job_row(app, job_id).status == "cancelled"
+
+
+def test_only_the_attempt_that_owns_the_job_can_store_results(
+    app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
+) -> None:
+    job_id = running_job(app, client, auth)
+    reap(app.state.sessionmaker, settings, CeleryJobQueue(settings))
+    with app.state.sessionmaker() as session:
+        assert claim(session, job_id) == 2
+        session.commit()
+    job = job_row(app, job_id)
+
+    def count() -> int:
+        with app.state.sessionmaker() as session:
+            return session.execute(
+                select(func.count()).select_from(Reward).where(Reward.job_id == job_id)
+            ).scalar_one()
+
+    zombie = Monitor(app.state.sessionmaker, job_id, 1, settings)
+    zombie.beat()
+    assert zombie.lost and zombie.should_stop()
+    for attempt, expected in ((1, 0), (2, 3), (2, 3)):  # the zombie, the owner, the owner again
+        store_results(
+            app.state.sessionmaker,
+            job_id,
+            attempt,
+            lab_id=job.lab_id,
+            task_ids=job.task_ids,
+            result=fake_result(2),
+        )
+        assert count() == expected
+    assert job_row(app, job_id).status == "succeeded"
+    rewards = client.get(f"/v1/jobs/{job_id}/rewards", headers=auth).json()
+    assert [t["task_id"] for t in rewards["tasks"]] == job.task_ids
+
+
+def test_monitor_passes_a_cancel_request_to_the_fit(
+    app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
+) -> None:
+    job_id = running_job(app, client, auth, stale=False)
+    monitor = Monitor(app.state.sessionmaker, job_id, 1, settings)
+    monitor.beat()
+    assert not monitor.should_stop()
+    client.post(f"/v1/jobs/{job_id}/cancel", headers=auth)
+    monitor.beat()
+    assert monitor.should_stop() and not monitor.lost

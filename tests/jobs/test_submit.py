@@ -1,0 +1,191 @@
+"""`POST /v1/jobs` checks, listing, cancelling queued jobs and broker failures — API only, no worker.
+
+Runs on the root fixtures' SQLite and PostgreSQL databases with the embedded broker (nothing consumes it).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from fastapi import FastAPI
+from fastapi.testclient import TestClient
+
+from metairl_engine.config import FitConfig
+from service.queue import CeleryJobQueue
+from service.settings import Settings
+from tests.jobs.helpers import QUICK, demonstrated_tasks, submit
+from tests.service.helpers import add_demonstrations, make_demonstrator, make_mdp, make_task
+
+
+def pointers(response: Any) -> list[str]:
+    """The pointers of a 422 problem (asserting it is one)."""
+    assert response.status_code == 422, response.text
+    assert response.headers["content-type"].startswith("application/problem+json")
+    return [e["pointer"] for e in response.json()["errors"]]
+
+
+@pytest.mark.parametrize(
+    ("config", "pointer"),
+    [
+        ({"max_steps": 0}, "/config/max_steps"),
+        ({"max_stepz": 10}, "/config/max_stepz"),
+        ({"max_steps": "ten"}, "/config/max_steps"),
+        ({"max_steps": 10.5}, "/config/max_steps"),
+        ({"learning_rate": True}, "/config/learning_rate"),
+        ({"hidden": [8, "x"]}, "/config/hidden"),
+        ({"sharing": "cosine"}, "/config/sharing"),
+        ({"holdout_fraction": 1.0}, "/config/holdout_fraction"),
+    ],
+)
+def test_bad_config_is_422_naming_the_field_and_creates_no_job(
+    client: TestClient, auth: dict[str, str], config: dict[str, Any], pointer: str
+) -> None:
+    demonstrator_id, _ = demonstrated_tasks(client, auth, 1)
+    response = client.post(
+        "/v1/jobs", json={"demonstrator_id": demonstrator_id, "config": config}, headers=auth
+    )
+    assert pointer in pointers(response)
+    assert pointer in response.json()["detail"]
+    assert client.get("/v1/jobs", headers=auth).json()["data"] == []
+
+
+def test_submitted_job_is_queued_with_every_setting_filled_in(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    demonstrator_id, task_ids = demonstrated_tasks(client, auth)
+    job = submit(client, auth, demonstrator_id, {"max_steps": 7, "hidden": [4, 2]})
+    assert job["id"].startswith("job_")
+    assert job["status"] == "queued"
+    assert job["task_ids"] == task_ids
+    assert job["config"] == FitConfig(max_steps=7, hidden=(4, 2)).to_dict()
+    assert (job["attempts"], job["progress"], job["error"], job["cancel_requested"]) == (0, None, None, False)
+    assert client.get(f"/v1/jobs/{job['id']}", headers=auth).json() == job
+    events = client.get(f"/v1/jobs/{job['id']}/events", headers=auth).json()
+    assert [(e["kind"], e["status"]) for e in events["data"]] == [("status", "queued")]
+
+
+def test_tasks_must_belong_to_the_demonstrator_and_appear_once(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    demonstrator_id, task_ids = demonstrated_tasks(client, auth)
+    _, others = demonstrated_tasks(client, auth, 1)
+    body = {
+        "demonstrator_id": demonstrator_id,
+        "task_ids": [task_ids[0], others[0], task_ids[0], "task_nope"],
+    }
+    assert pointers(client.post("/v1/jobs", json=body, headers=auth)) == [
+        "/task_ids/1",
+        "/task_ids/2",
+        "/task_ids/3",
+    ]
+
+
+def test_every_task_needs_demonstrations(client: TestClient, auth: dict[str, str]) -> None:
+    demonstrator_id, task_ids = demonstrated_tasks(client, auth, 1)
+    bare = make_task(client, auth, demonstrator_id=demonstrator_id)["id"]
+    response = client.post(
+        "/v1/jobs", json={"demonstrator_id": demonstrator_id, "task_ids": [task_ids[0], bare]}, headers=auth
+    )
+    assert pointers(response) == ["/task_ids/1"]
+    assert "has no demonstrations" in response.json()["errors"][0]["message"]
+
+
+def test_tasks_must_share_one_state_space(client: TestClient, auth: dict[str, str]) -> None:
+    demonstrator_id, _ = demonstrated_tasks(client, auth, 1)
+    wider = make_mdp(
+        client,
+        auth,
+        n_states=4,
+        transitions={"kind": "deterministic", "next_state": [[0, 1], [0, 2], [1, 3], [2, 3]]},
+        layout=None,
+    )
+    other = make_task(client, auth, demonstrator_id=demonstrator_id, mdp_id=wider["id"])["id"]
+    add_demonstrations(client, auth, other)
+    response = client.post("/v1/jobs", json={"demonstrator_id": demonstrator_id}, headers=auth)
+    assert pointers(response) == ["/demonstrator_id"]
+    assert "4 states" in response.json()["errors"][0]["message"]
+    assert other in response.json()["errors"][0]["message"]
+
+
+def test_unknown_or_other_labs_demonstrator_is_the_same_422(
+    client: TestClient, auth: dict[str, str], auth_b: dict[str, str]
+) -> None:
+    theirs = make_demonstrator(client, auth_b)["id"]
+    for demonstrator_id in (theirs, "dem_nope"):
+        response = client.post("/v1/jobs", json={"demonstrator_id": demonstrator_id}, headers=auth)
+        assert pointers(response) == ["/demonstrator_id"]
+        assert response.json()["errors"][0]["message"] == "no demonstrator with this id exists in your lab"
+
+
+def test_other_labs_job_is_not_found_anywhere(
+    client: TestClient, auth: dict[str, str], auth_b: dict[str, str]
+) -> None:
+    demonstrator_id, _ = demonstrated_tasks(client, auth, 1)
+    job_id = submit(client, auth, demonstrator_id, QUICK)["id"]
+    for method, path in [
+        ("GET", f"/v1/jobs/{job_id}"),
+        ("GET", f"/v1/jobs/{job_id}/events"),
+        ("GET", f"/v1/jobs/{job_id}/rewards"),
+        ("POST", f"/v1/jobs/{job_id}/cancel"),
+    ]:
+        assert client.request(method, path, headers=auth_b).status_code == 404, path
+    assert client.get("/v1/jobs", headers=auth_b).json()["data"] == []
+    assert client.get(f"/v1/jobs/{job_id}", headers=auth).json()["status"] == "queued"
+
+
+def test_list_filters_by_status_and_demonstrator_with_cursor_pages(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    first, _ = demonstrated_tasks(client, auth, 1)
+    second, _ = demonstrated_tasks(client, auth, 1)
+    ids = [submit(client, auth, dem, QUICK)["id"] for dem in (first, first, second)]
+    client.post(f"/v1/jobs/{ids[0]}/cancel", headers=auth)
+
+    def listed(**params: Any) -> list[str]:
+        out: list[str] = []
+        cursor = None
+        while True:
+            page = client.get(
+                "/v1/jobs",
+                params={**params, "limit": 1, **({"cursor": cursor} if cursor else {})},
+                headers=auth,
+            ).json()
+            out += [j["id"] for j in page["data"]]
+            if not page["has_more"]:
+                return out
+            cursor = page["next_cursor"]
+
+    assert listed() == ids[::-1]
+    assert listed(demonstrator_id=first) == ids[1::-1]
+    assert listed(status="cancelled") == [ids[0]]
+    assert listed(status="queued", demonstrator_id=first) == [ids[1]]
+    assert client.get("/v1/jobs", params={"status": "done"}, headers=auth).status_code == 422
+
+
+def test_cancelling_a_queued_job_is_immediate_and_again_is_409(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    demonstrator_id, _ = demonstrated_tasks(client, auth, 1)
+    job_id = submit(client, auth, demonstrator_id, QUICK)["id"]
+    response = client.post(f"/v1/jobs/{job_id}/cancel", headers=auth)
+    assert response.status_code == 202
+    assert response.json()["status"] == "cancelled"
+    assert response.json()["finished_at"] is not None
+    again = client.post(f"/v1/jobs/{job_id}/cancel", headers=auth)
+    assert again.status_code == 409
+    assert "already finished (cancelled)" in again.json()["detail"]
+    rewards = client.get(f"/v1/jobs/{job_id}/rewards", headers=auth)
+    assert rewards.status_code == 409
+
+
+def test_broker_refusing_the_message_fails_the_job_with_the_reason(
+    app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
+) -> None:
+    app.state.job_queue = CeleryJobQueue(settings.model_copy(update={"broker_url": "redis://127.0.0.1:1/0"}))
+    demonstrator_id, _ = demonstrated_tasks(client, auth, 1)
+    job = submit(client, auth, demonstrator_id, QUICK)
+    assert job["status"] == "failed"
+    assert "could not be handed to a worker" in job["error"]
+    assert "redis://127.0.0.1:1/0" in job["error"]
+    assert client.get(f"/v1/jobs/{job['id']}", headers=auth).json()["status"] == "failed"

@@ -1,0 +1,198 @@
+"""Jobs run by real worker processes, on the embedded backend (SQLite + filesystem broker) and on
+PostgreSQL + Redis: results and downloads, progress, cancel, engine failures and a killed worker."""
+
+from __future__ import annotations
+
+import io
+import socket
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from sqlalchemy import func, select
+
+from service.ids import new_id
+from service.jobstatus import JobStatus
+from service.models.base import utcnow
+from service.models.demonstrators import Task
+from service.models.jobs import Job, Reward
+from service.queue import CeleryJobQueue
+from tests.jobs.conftest import REPO, Stack, settings_environment
+from tests.jobs.helpers import (
+    ENDLESS,
+    LONG,
+    QUICK,
+    all_events,
+    demonstrated_tasks,
+    ring_tasks,
+    submit,
+    wait_for,
+)
+from tests.service.helpers import add_demonstrations, make_mdp, make_task
+
+pytestmark = [pytest.mark.worker, pytest.mark.slow]
+
+
+def reward_rows(stack: Stack, job_id: str) -> int:
+    """How many reward rows the job has in the database."""
+    with stack.client.app.state.sessionmaker() as session:  # type: ignore[attr-defined]
+        return session.execute(
+            select(func.count()).select_from(Reward).where(Reward.job_id == job_id)
+        ).scalar_one()
+
+
+def test_job_succeeds_and_its_rewards_download_as_json_and_npy(
+    stack: Stack, worker: subprocess.Popen[bytes]
+) -> None:
+    client, auth = stack.client, stack.auth
+    demonstrator_id, task_ids = demonstrated_tasks(client, auth)
+    job = wait_for(client, auth, submit(client, auth, demonstrator_id, QUICK)["id"])
+    assert job["status"] == "succeeded", job
+    assert (job["attempts"], job["progress"]["step"], job["error"]) == (1, QUICK["max_steps"], None)
+    assert job["started_at"] <= job["finished_at"]
+
+    rewards = client.get(f"/v1/jobs/{job['id']}/rewards", headers=auth).json()
+    assert [t["task_id"] for t in rewards["tasks"]] == task_ids
+    assert reward_rows(stack, job["id"]) == 1 + len(task_ids)
+    for ref in [rewards["baseline"], *rewards["tasks"]]:
+        as_json = client.get(f"/v1/rewards/{ref['reward_id']}", headers=auth).json()
+        assert (as_json["reward_id"], as_json["n_states"], len(as_json["values"])) == (ref["reward_id"], 3, 3)
+        npy = client.get(f"/v1/rewards/{ref['reward_id']}", params={"format": "npy"}, headers=auth)
+        array = np.load(io.BytesIO(npy.content))
+        assert array.dtype == np.float32 and array.shape == (3,)
+        np.testing.assert_array_equal(array, np.asarray(as_json["values"], dtype=np.float32))
+    task_reward = rewards["tasks"][0]["reward_id"]
+    policy = client.get(
+        f"/v1/rewards/{task_reward}", params={"quantity": "policy", "format": "npy"}, headers=auth
+    )
+    policy_array = np.load(io.BytesIO(policy.content))
+    assert policy_array.shape == (3, 2)
+    np.testing.assert_allclose(policy_array.sum(axis=1), 1.0, rtol=1e-5)
+    value = client.get(f"/v1/rewards/{task_reward}", params={"quantity": "value"}, headers=auth).json()
+    assert len(value["values"]) == 3 and value["quantity"] == "value"
+    baseline_value = client.get(
+        f"/v1/rewards/{rewards['baseline']['reward_id']}", params={"quantity": "value"}, headers=auth
+    )
+    assert baseline_value.status_code == 409
+
+
+def test_running_job_reports_progress_and_cancels_within_seconds(
+    stack: Stack, worker: subprocess.Popen[bytes]
+) -> None:
+    client, auth = stack.client, stack.auth
+    demonstrator_id, _ = ring_tasks(client, auth)
+    running = submit(client, auth, demonstrator_id, ENDLESS)["id"]
+    first = wait_for(client, auth, running, lambda j: (j["progress"] or {}).get("step", 0) >= 1)
+    waiting = submit(client, auth, demonstrator_id, QUICK)["id"]  # the only worker slot is taken
+    later = wait_for(
+        client, auth, running, lambda j: j["progress"]["step"] > first["progress"]["step"], timeout=10
+    )
+    assert later["status"] == "running" and later["progress"]["elapsed_s"] > first["progress"]["elapsed_s"]
+
+    queued_cancel = client.post(f"/v1/jobs/{waiting}/cancel", headers=auth).json()
+    assert queued_cancel["status"] == "cancelled"
+
+    asked = time.monotonic()
+    assert client.post(f"/v1/jobs/{running}/cancel", headers=auth).json()["cancel_requested"] is True
+    ended = wait_for(client, auth, running, timeout=10)
+    assert ended["status"] == "cancelled" and time.monotonic() - asked < 5
+    assert client.post(f"/v1/jobs/{running}/cancel", headers=auth).status_code == 409
+
+    events = all_events(client, auth, running)
+    steps = [e["step"] for e in events if e["kind"] == "progress"]
+    assert len(steps) >= 2 and steps == sorted(set(steps))
+    assert [e["status"] for e in events if e["kind"] == "status"] == ["queued", "running", "cancelled"]
+
+    time.sleep(1.5)  # the worker now reaches the cancelled job's message and must skip it
+    skipped = client.get(f"/v1/jobs/{waiting}", headers=auth).json()
+    assert (skipped["status"], skipped["attempts"]) == ("cancelled", 0)
+
+
+def test_engine_failure_fails_the_job_with_a_sentence_naming_the_task(
+    stack: Stack, worker: subprocess.Popen[bytes]
+) -> None:
+    """Inputs the API would refuse, written to the database directly: the engine's own check must catch them."""
+    client, auth = stack.client, stack.auth
+    demonstrator_id, [task_id] = demonstrated_tasks(client, auth, 1)
+    three_actions = make_mdp(
+        client,
+        auth,
+        n_actions=3,
+        transitions={"kind": "deterministic", "next_state": [[0, 1, 0], [0, 2, 1], [1, 2, 2]]},
+    )
+    odd_task = make_task(client, auth, demonstrator_id=demonstrator_id, mdp_id=three_actions["id"])["id"]
+    add_demonstrations(client, auth, odd_task)
+    with client.app.state.sessionmaker() as session:  # type: ignore[attr-defined]
+        job = Job(
+            id=new_id("job"),
+            lab_id=session.get_one(Task, task_id).lab_id,
+            demonstrator_id=demonstrator_id,
+            task_ids=[task_id, odd_task],
+            config=dict(QUICK),
+            status=JobStatus.QUEUED.value,
+            cancel_requested=False,
+            attempts=0,
+            max_attempts=1,
+            updated_at=utcnow(),
+        )
+        session.add(job)
+        session.commit()
+    CeleryJobQueue(stack.settings).enqueue(job.id)
+    failed = wait_for(client, auth, job.id)
+    assert failed["status"] == "failed"
+    assert failed["error"].startswith("The engine rejected the job's inputs")
+    assert f"task {odd_task}" in failed["error"] and "3 actions" in failed["error"]
+    assert reward_rows(stack, job.id) == 0
+
+
+def test_killed_worker_job_is_rerun_by_the_reaper_with_one_result_set(
+    stack: Stack, worker: subprocess.Popen[bytes]
+) -> None:
+    client, auth = stack.client, stack.auth
+    demonstrator_id, task_ids = ring_tasks(client, auth)
+    stack.workers.kill(worker)
+    fresh = stack.workers.start()  # its pool has not imported torch yet: the kill lands early in attempt 1
+    job_id = submit(client, auth, demonstrator_id, LONG)["id"]
+    wait_for(client, auth, job_id, lambda j: j["status"] == "running")
+    stack.workers.kill(fresh)  # SIGKILL the whole worker: nothing reports, the in-flight message is gone
+    assert client.get(f"/v1/jobs/{job_id}", headers=auth).json()["status"] == "running"
+
+    stack.workers.start()
+    done = wait_for(client, auth, job_id, timeout=120)
+    assert done["status"] == "succeeded", done
+    assert done["attempts"] == 2
+    assert reward_rows(stack, job_id) == 1 + len(task_ids)
+    events = all_events(client, auth, job_id)
+    statuses = [(e["status"], e["attempt"]) for e in events if e["kind"] == "status"]
+    assert statuses == [("queued", 0), ("running", 1), ("queued", 1), ("running", 2), ("succeeded", 2)]
+    requeued = next(e for e in events if e["status"] == "queued" and e["attempt"] == 1)
+    assert "stopped sending heartbeats" in requeued["message"]
+
+
+def test_worker_answers_the_compose_health_check(stack: Stack, worker: subprocess.Popen[bytes]) -> None:
+    """docker-compose.yml's worker health check, run natively (remote control exists on Redis, not on files)."""
+    if stack.name != "redis_pg":
+        pytest.skip("the embedded broker has no remote control; compose runs Redis")
+    check = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "celery",
+            "-A",
+            "worker.celery_app",
+            "inspect",
+            "ping",
+            "--destination",
+            f"celery@{socket.gethostname()}",
+            "--timeout",
+            "5",
+        ],
+        cwd=REPO,
+        env=settings_environment(stack.settings),
+        capture_output=True,
+        timeout=60,
+    )
+    assert check.returncode == 0, check.stdout + check.stderr
+    assert b"pong" in check.stdout

@@ -1,0 +1,73 @@
+"""The worker's Celery app: late acks, one message at a time, time limits and the reaper in every worker.
+
+Start it with ``metairl worker`` or ``python -m celery -A worker.celery_app worker``. A message is
+acknowledged only after its job finished (``acks_late``) and is given back if the pool process dies
+(``reject_on_worker_lost``); because neither saves a job when the whole worker is killed (the embedded
+broker loses the in-flight message, Redis redelivers only after its visibility timeout), each worker
+also runs the reaper, which re-queues or fails running jobs whose heartbeat stopped.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any, ClassVar
+
+from celery import Celery, bootsteps
+
+from service.broker import celery_config
+from service.settings import get_settings
+
+log = logging.getLogger(__name__)
+
+
+class ReaperStep(bootsteps.StartStopStep):
+    """Runs `worker.reaper.reap_once` at start and then every ``reaper_interval_s`` on the worker's timer."""
+
+    requires: ClassVar[set[str]] = {"celery.worker.components:Timer"}
+
+    def __init__(self, parent: Any, **kwargs: Any):
+        super().__init__(parent, **kwargs)
+        self.tref: Any = None
+
+    def start(self, parent: Any) -> None:
+        """Reap once now (jobs orphaned while no worker ran), then periodically."""
+        self._reap()
+        self.tref = parent.timer.call_repeatedly(get_settings().reaper_interval_s, self._reap)
+
+    def stop(self, parent: Any) -> None:
+        """Cancel the periodic call."""
+        if self.tref is not None:
+            parent.timer.cancel(self.tref)
+            self.tref = None
+
+    def _reap(self) -> None:
+        """One reaper pass; a failure is logged and retried at the next interval, never fatal."""
+        from worker.reaper import reap_once
+
+        try:
+            reap_once()
+        except Exception:
+            log.exception("reaper pass failed; retrying in %s s", get_settings().reaper_interval_s)
+
+
+def make_app() -> Celery:
+    """The Celery app configured from `Settings` (broker shared with the API via `service.broker`)."""
+    settings = get_settings()
+    app = Celery("metairl", include=["worker.tasks"])
+    app.conf.update(celery_config(settings))
+    app.conf.update(
+        task_acks_late=True,
+        task_reject_on_worker_lost=True,
+        worker_prefetch_multiplier=1,
+        worker_concurrency=settings.worker_concurrency,
+        task_soft_time_limit=settings.job_time_limit_s,
+        task_time_limit=settings.job_time_limit_s + 60,
+        worker_send_task_events=False,
+        # The embedded broker is one folder: no broadcast control needed, and none wanted polling it.
+        worker_enable_remote_control=not app.conf.broker_url.startswith("filesystem://"),
+    )
+    app.steps["worker"].add(ReaperStep)
+    return app
+
+
+app = make_app()

@@ -1,0 +1,198 @@
+"""Run one claimed attempt of a job: load its inputs, fit with the engine, store the results — fenced by attempt.
+
+The fit runs in the calling (pool) thread while the attempt's `Monitor` thread keeps its heartbeat,
+progress and cancel flag. Results and the status change to succeeded are one transaction, applied
+only if this attempt still owns the row.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Sequence
+
+import torch
+from billiard.exceptions import SoftTimeLimitExceeded
+from sqlalchemy.orm import Session, sessionmaker
+
+from metairl_engine.config import FitConfig
+from metairl_engine.errors import Cancelled, InvalidInput
+from metairl_engine.fit import FitResult, TaskData, fit
+from metairl_engine.metrics import pearson
+from service.blobs import put_array
+from service.ids import new_id
+from service.inputs import load_mdp, load_trajectories, load_true_reward
+from service.jobstatus import JobStatus
+from service.jobstore import owned_by, transition
+from service.models.demonstrators import Task
+from service.models.jobs import Job, Reward
+from service.settings import Settings, get_settings
+from worker.context import sessions
+from worker.monitor import Monitor, progress_values
+
+log = logging.getLogger(__name__)
+
+
+def run_attempt(job_id: str, attempt: int, monitor: Monitor) -> None:
+    """Run attempt ``attempt`` of job ``job_id`` (claimed, its `monitor` beating) to a final status.
+
+    Nothing is written once the attempt has lost the job (the monitor found another attempt owns it).
+    """
+    settings = get_settings()
+    make_session = sessions()
+    torch.set_num_threads(torch_threads(settings.worker_concurrency))
+    task_ids: list[str] = []
+    try:
+        try:
+            with make_session() as session:
+                job = session.get_one(Job, job_id)
+                task_ids, lab_id = list(job.task_ids), job.lab_id
+                config = FitConfig.from_dict(job.config)
+                tasks = load_tasks(session, task_ids)
+            result = fit(tasks, config, progress=monitor.report, should_stop=monitor.should_stop)
+        finally:
+            monitor.close()  # the last progress sample is written before the final status
+    except Cancelled:
+        if monitor.lost:
+            log.warning("job %s: attempt %d lost the job to another attempt; stopped", job_id, attempt)
+            return
+        finish(make_session, job_id, attempt, JobStatus.CANCELLED, message="cancelled on request")
+    except Exception as exc:
+        log.exception("job %s: attempt %d failed", job_id, attempt)
+        reason = explain_failure(exc, task_ids=task_ids, settings=settings)
+        finish(make_session, job_id, attempt, JobStatus.FAILED, values={"error": reason}, message=reason)
+    else:
+        store_results(make_session, job_id, attempt, lab_id=lab_id, task_ids=task_ids, result=result)
+
+
+def torch_threads(concurrency: int) -> int:
+    """Threads per job: the cores this process may run on, shared evenly by the jobs run at once."""
+    return max(1, len(os.sched_getaffinity(0)) // max(1, concurrency))
+
+
+def load_tasks(session: Session, task_ids: Sequence[str]) -> list[TaskData]:
+    """The engine's view of each task: its MDP and trajectories (MDPs shared by tasks are loaded once)."""
+    mdps = {}
+    out = []
+    for task_id in task_ids:
+        task = session.get_one(Task, task_id)
+        if task.mdp_id not in mdps:
+            mdps[task.mdp_id] = load_mdp(session, task.mdp_id)
+        out.append(
+            TaskData(mdp=mdps[task.mdp_id], trajectories=load_trajectories(session, task_id), name=task_id)
+        )
+    return out
+
+
+def explain_failure(exc: BaseException, *, task_ids: Sequence[str], settings: Settings) -> str:
+    """A sentence a person can act on: which input or limit, and what to change."""
+    if isinstance(exc, InvalidInput):
+        issues = "; ".join(f"{name_pointer(i.pointer, task_ids)}: {i.message}" for i in exc.issues[:5])
+        return f"The engine rejected the job's inputs — {issues}. Fix or remove the named task and submit a new job."
+    if isinstance(exc, SoftTimeLimitExceeded):
+        return (
+            f"The job ran longer than the limit of {settings.job_time_limit_s} s; lower config.max_steps, "
+            "fit fewer or smaller tasks, or ask the operator to raise METAIRL_JOB_TIME_LIMIT_S."
+        )
+    if isinstance(exc, MemoryError):
+        return (
+            "The worker ran out of memory; use smaller config.hidden layers or fewer states, "
+            "or run the job on a worker with more memory."
+        )
+    return (
+        f"The job failed unexpectedly ({type(exc).__name__}: {exc}). This is a bug in metairl: "
+        "please report it with the job id; resubmitting with a different config.seed may avoid it."
+    )
+
+
+def name_pointer(pointer: str, task_ids: Sequence[str]) -> str:
+    """Replace the engine's ``/tasks/<i>`` pointer prefix by the task's id (``task task_…/…``)."""
+    parts = pointer.split("/")
+    if len(parts) > 2 and parts[1] == "tasks" and parts[2].isdigit() and int(parts[2]) < len(task_ids):
+        rest = "/".join(parts[3:])
+        return f"task {task_ids[int(parts[2])]}" + (f" /{rest}" if rest else "")
+    return pointer or "/"
+
+
+def finish(
+    make_session: sessionmaker[Session],
+    job_id: str,
+    attempt: int,
+    status: JobStatus,
+    *,
+    values: dict[str, object] | None = None,
+    message: str,
+) -> None:
+    """End this attempt's job as ``status`` (cancelled or failed) if the attempt still owns it."""
+    with make_session() as session:
+        changed = transition(
+            session,
+            job_id,
+            JobStatus.RUNNING,
+            status,
+            where=owned_by(attempt),
+            values=values,
+            message=message,
+        )
+        if changed is not None:
+            session.commit()
+            log.info("job %s: %s", job_id, status.value)
+
+
+def store_results(
+    make_session: sessionmaker[Session],
+    job_id: str,
+    attempt: int,
+    *,
+    lab_id: str,
+    task_ids: Sequence[str],
+    result: FitResult,
+) -> None:
+    """Write every reward, value and policy and mark the job succeeded, in one transaction, if still owned."""
+    n_states, n_actions = result.baseline.shape[0], result.policies.shape[2]
+    with make_session() as session:
+        last = result.history[-1] if result.history else None
+        done = transition(
+            session,
+            job_id,
+            JobStatus.RUNNING,
+            JobStatus.SUCCEEDED,
+            where=owned_by(attempt),
+            values={"best_step": result.best_step, **progress_values(last)},
+            message=f"finished after {len(result.history)} steps (kept step {result.best_step})",
+        )
+        if done is None:
+            log.warning("job %s: attempt %d no longer owns the job; results discarded", job_id, attempt)
+            return
+        session.add(
+            Reward(
+                id=new_id("rwd"),
+                lab_id=lab_id,
+                job_id=job_id,
+                ordinal=0,
+                kind="baseline",
+                n_states=n_states,
+                n_actions=n_actions,
+                reward_blob_id=put_array(session, result.baseline, lab_id=lab_id),
+            )
+        )
+        for i, task_id in enumerate(task_ids):
+            truth = load_true_reward(session, task_id)
+            session.add(
+                Reward(
+                    id=new_id("rwd"),
+                    lab_id=lab_id,
+                    job_id=job_id,
+                    ordinal=i + 1,
+                    kind="task",
+                    task_id=task_id,
+                    n_states=n_states,
+                    n_actions=n_actions,
+                    reward_blob_id=put_array(session, result.rewards[i], lab_id=lab_id),
+                    value_blob_id=put_array(session, result.values[i], lab_id=lab_id),
+                    policy_blob_id=put_array(session, result.policies[i], lab_id=lab_id),
+                    truth_pearson=None if truth is None else pearson(result.rewards[i], truth),
+                )
+            )
+        session.commit()
+    log.info("job %s: succeeded", job_id)
