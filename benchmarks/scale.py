@@ -1,0 +1,165 @@
+"""Scale benchmark: the paper's 100×100 × 8-direction motion MDP (80,000 states, 8 actions).
+
+Measures, for meta-IRL with Huber sharing on all states and the default MLP [100, 50, 25]:
+seconds per optimisation step and peak RSS for 1, 4, 8, 16 tasks (each in a fresh process, so RSS is
+that fit's alone); steps and wall time to the default stopping rule for 8 and 16 tasks; and the MaxEnt
+reference solver's time per task on the same MDP. Usage::
+
+    .venv/bin/python benchmarks/scale.py [--tasks 1 4 8 16] [--steps 10] [--full 8 16] [--maxent 1] [--threads N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from metairl_engine import FitConfig, Trajectory  # noqa: E402
+from metairl_engine.grids import grid_mdp  # noqa: E402
+from metairl_engine.mdp import MDP  # noqa: E402
+from metairl_engine.planning import transition_matrix, value_iteration  # noqa: E402
+from metairl_engine.results import TaskData  # noqa: E402
+from metairl_engine.terrain import make_world  # noqa: E402
+
+SIZE = 100
+CONFIG = FitConfig(sharing="huber", sharing_states="all")
+
+
+def motion_tasks(n_tasks: int, *, n_demos: int = 3, seed: int = 0) -> list[TaskData]:
+    """Tasks on the velocity grid: reward = −terrain cost + a goal-cell bonus, soft-optimal demonstrations."""
+    mdp: MDP = grid_mdp(width=SIZE, height=SIZE, velocity=True, gamma=0.9)
+    assert mdp.next_state is not None
+    cost = np.tile(
+        make_world(size=SIZE, n_hills=12, seed=seed).cost, 8
+    )  # same cost in every direction channel
+    p = transition_matrix(mdp)
+    rng = np.random.default_rng(seed)
+    cells = SIZE * SIZE
+    tasks = []
+    for _ in range(n_tasks):
+        goal_cell = int(rng.integers(cells))
+        reward = -cost.astype(np.float64)
+        reward[goal_cell::cells] += 3.0
+        policy = value_iteration(p, reward, gamma=mdp.gamma, confidence=2.0, tolerance=1e-4).policy
+        demos = []
+        for _ in range(n_demos):
+            states, actions = [int(rng.integers(mdp.n_states))], list[int]()
+            while states[-1] % cells != goal_cell and len(actions) < 150:
+                a = int(rng.choice(mdp.n_actions, p=policy[states[-1]]))
+                actions.append(a)
+                states.append(int(mdp.next_state[states[-1], a]))
+            if not actions:  # started on the goal cell: take one step
+                actions.append(0)
+                states.append(int(mdp.next_state[states[-1], 0]))
+            demos.append(Trajectory.of(states, actions))
+        tasks.append(TaskData(mdp=mdp, trajectories=demos, name=f"goal {goal_cell}"))
+    return tasks
+
+
+def child(mode: str, n_tasks: int, steps: int, threads: int) -> dict[str, float]:
+    """Run one measurement in this process and return its numbers (called in a fresh subprocess)."""
+    import torch
+
+    if threads:
+        torch.set_num_threads(threads)
+
+    from metairl_engine.fit import fit
+
+    tasks = motion_tasks(n_tasks)
+    rss_before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    times: list[tuple[float, float]] = []
+    if mode == "step":
+        fit(tasks, replace(CONFIG, max_steps=2, holdout_fraction=0.0))  # warm-up
+        result = fit(
+            tasks,
+            replace(CONFIG, max_steps=steps, holdout_fraction=0.0, tolerance=0.0),
+            progress=lambda p: times.append((p.elapsed_s, time.process_time())),
+        )
+        wall, cpu = np.diff(np.array(times), axis=0).T
+        per_step = float(np.median(wall))
+        out = {
+            "s_per_step": per_step,
+            "s_per_task_step": per_step / n_tasks,
+            "cpu_s_per_step": float(np.median(cpu)),
+            "steps": len(result.history),
+            "load_average": os.getloadavg()[0],
+        }
+    elif mode == "full":
+        started = time.perf_counter()
+        result = fit(tasks, CONFIG)
+        out = {
+            "steps": len(result.history),
+            "kept_step": result.best_step,
+            "wall_s": time.perf_counter() - started,
+        }
+    else:
+        started = time.perf_counter()
+        result = fit(tasks, replace(CONFIG, method="maxent"))
+        out = {"s_per_task": (time.perf_counter() - started) / n_tasks, "iterations": len(result.history)}
+    out["peak_rss_gb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2
+    out["rss_before_fit_gb"] = rss_before / 1024
+    out["threads"] = torch.get_num_threads()
+    return out
+
+
+def measure(mode: str, n_tasks: int, steps: int, threads: int) -> dict[str, float]:
+    """Run `child` in a fresh interpreter so peak RSS belongs to this measurement only."""
+    cmd = [sys.executable, __file__, "--child", mode, str(n_tasks), str(steps), str(threads)]
+    done = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    return dict(json.loads(done.stdout.strip().splitlines()[-1]))
+
+
+def main() -> None:
+    """Parse arguments, run the measurements, print a markdown table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--tasks", type=int, nargs="*", default=[1, 4, 8, 16])
+    parser.add_argument("--steps", type=int, default=10)
+    parser.add_argument("--full", type=int, nargs="*", default=[8, 16])
+    parser.add_argument("--maxent", type=int, default=1, help="tasks for the MaxEnt timing (0 skips)")
+    parser.add_argument("--threads", type=int, default=0, help="torch threads (0: torch's default)")
+    parser.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        mode, n_tasks, steps, threads = args.child
+        print(json.dumps(child(mode, int(n_tasks), int(steps), int(threads))))
+        return
+    print(
+        "| measurement | tasks | s/step (CPU s/step) | s/task-step | steps (kept) | wall s | peak RSS GB | load |"
+    )
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    for n in args.tasks:
+        r = measure("step", n, args.steps, args.threads)
+        print(
+            f"| step time | {n} | {r['s_per_step']:.3f} ({r['cpu_s_per_step']:.3f}) | {r['s_per_task_step']:.3f} "
+            f"| | | {r['peak_rss_gb']:.2f} | {r['load_average']:.1f} |",
+            flush=True,
+        )
+    for n in args.full:
+        r = measure("full", n, 0, args.threads)
+        print(
+            f"| to stopping rule | {n} | | | {r['steps']} ({r['kept_step']}) | {r['wall_s']:.0f} "
+            f"| {r['peak_rss_gb']:.2f} | {os.getloadavg()[0]:.1f} |",
+            flush=True,
+        )
+    if args.maxent:
+        r = measure("maxent", args.maxent, 0, args.threads)
+        print(
+            f"| maxent | {args.maxent} | | {r['s_per_task']:.1f} s/task | {r['iterations']} | "
+            f"| {r['peak_rss_gb']:.2f} | {os.getloadavg()[0]:.1f} |",
+            flush=True,
+        )
+
+
+if __name__ == "__main__":
+    main()
