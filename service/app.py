@@ -16,7 +16,7 @@ from service.limits import BodySizeLimit
 from service.openapi import install_openapi
 from service.problems import install_handlers
 from service.queue import CeleryJobQueue
-from service.routes import demonstrations, demonstrators, jobs, mdps, recordings, rewards, tasks
+from service.routes import comparisons, demonstrations, demonstrators, jobs, mdps, recordings, rewards, tasks
 from service.settings import Settings, get_settings
 
 DESCRIPTION = """Meta inverse reinforcement learning as a service: upload MDPs and one demonstrator's
@@ -69,7 +69,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_handlers(app)
     app.add_middleware(Idempotency, settings=settings)
     app.add_middleware(BodySizeLimit, settings=settings)
-    for module in (mdps, demonstrators, tasks, demonstrations, recordings, jobs, rewards):
+    for module in (mdps, demonstrators, tasks, demonstrations, recordings, jobs, rewards, comparisons):
         app.include_router(module.router, prefix="/v1")
 
     install_openapi(app)

@@ -1,145 +1,91 @@
-"""Learned rewards (API.md §6, minimal): a succeeded job's reward ids, and one reward as JSON or ``.npy``.
+"""Learned rewards (API.md §6): a succeeded job's rewards, and one reward, value function or policy as a file.
 
-``?quantity=value|policy`` gives a task's value function (S,) or policy (S, A) the same way.
+Thin routes over `service.results`. The download route is a plain ``def``: FastAPI runs it in its thread
+pool (``run_in_threadpool``), so drawing a heatmap (up to ~2 s at 80,000 states) never blocks the event loop.
 """
 
 from __future__ import annotations
 
-import io
-from typing import Annotated, Literal
+from typing import Annotated, Any
 
-import numpy as np
-from fastapi import APIRouter, Query, Response
-from pydantic import BaseModel, ConfigDict, Field
-from sqlalchemy import select
+from fastapi import APIRouter, Header, Query, Response
 
+from service import results
 from service.auth import LabDep
-from service.blobs import get_array
 from service.deps import SessionDep
-from service.jobstatus import JobStatus
-from service.models.jobs import Reward
-from service.problems import Conflict, NotFound
+from service.openapi import PROBLEM_RESPONSES
 from service.routes.jobs import JobDep
+from service.schemas.rewards import Format, JobRewards, Overlay, Quantity, RewardValues
 
-router = APIRouter(tags=["rewards"])
+router = APIRouter(tags=["rewards"], responses=PROBLEM_RESPONSES)
 
-Quantity = Literal["reward", "value", "policy"]
-Format = Literal["json", "npy"]
-
-
-class RewardRef(BaseModel):
-    """One learned reward of a job: its id (contract) and how it scores against a true reward, if given."""
-
-    model_config = ConfigDict(
-        json_schema_extra={
-            "examples": [
-                {
-                    "reward_id": "rwd_P0q9sL3xN6mB2vT8kW1yZe",
-                    "task_id": "task_7cXw2mB9tQk4Lr0sHn5yZa",
-                    "n_states": 100,
-                    "truth_pearson": 0.93,
-                }
-            ]
-        }
-    )
-
-    reward_id: str
-    task_id: str | None = None
-    n_states: int
-    truth_pearson: float | None = Field(
-        default=None, description="Pearson correlation with the task's true reward, when one was given."
-    )
+NOT_SUCCEEDED: dict[int | str, dict[str, Any]] = {409: {"description": "The job has not succeeded."}}
 
 
-class JobRewards(BaseModel):
-    """The baseline reward and each task's reward of a succeeded job (contract shape)."""
-
-    job_id: str
-    baseline: RewardRef
-    tasks: list[RewardRef]
-
-
-class RewardValues(BaseModel):
-    """A reward (or a task's value function or policy) as JSON; `values` is (S,) or, for a policy, (S, A)."""
-
-    model_config = ConfigDict(
-        json_schema_extra={
-            "examples": [
-                {
-                    "reward_id": "rwd_P0q9sL3xN6mB2vT8kW1yZe",
-                    "n_states": 3,
-                    "quantity": "reward",
-                    "values": [0.1, -0.2, 1.3],
-                }
-            ]
-        }
-    )
-
-    reward_id: str
-    n_states: int
-    quantity: Quantity
-    values: list[float] | list[list[float]]
+def file_response(download: results.Download) -> Response:
+    """The file with its media type, ``Content-Disposition`` and ``ETag``; an empty 304 when not modified."""
+    headers = {"Content-Disposition": f'{download.disposition}; filename="{download.filename}"'}
+    if download.etag is not None:
+        headers |= {"ETag": download.etag, "Cache-Control": "private, no-cache"}
+    if download.content is None:
+        return Response(status_code=304, headers=headers)
+    return Response(download.content, media_type=download.media_type, headers=headers)
 
 
-@router.get(
-    "/jobs/{job_id}/rewards",
-    summary="A job's learned rewards",
-    responses={
-        404: {"description": "No such job in your lab."},
-        409: {"description": "The job has not succeeded."},
-    },
-)
-def job_rewards(job: JobDep, session: SessionDep) -> JobRewards:
-    """Reward ids of the baseline and of every task, in the job's task order."""
-    if job.status != JobStatus.SUCCEEDED:
-        raise Conflict(f"Job {job.id} is {job.status}; rewards exist once it has succeeded.")
-    rows = (
-        session.execute(select(Reward).where(Reward.job_id == job.id).order_by(Reward.ordinal))
-        .scalars()
-        .all()
-    )
-    refs = [
-        RewardRef(reward_id=r.id, task_id=r.task_id, n_states=r.n_states, truth_pearson=r.truth_pearson)
-        for r in rows
-    ]
-    return JobRewards(job_id=job.id, baseline=refs[0], tasks=refs[1:])
+@router.get("/jobs/{job_id}/rewards", summary="A job's learned rewards", responses=NOT_SUCCEEDED)
+def job_rewards(
+    job: JobDep,
+    session: SessionDep,
+    exclude_top_truth: Annotated[
+        bool,
+        Query(
+            description="Also score each task reward against its true reward without the states where the "
+            "truth is highest (the goal): `truth_pearson_excluding_top`."
+        ),
+    ] = False,
+) -> JobRewards:
+    """The baseline and every task's reward in the job's task order: summary statistics, `truth_pearson`
+    against the task's current true reward (when one is set) and download links."""
+    results.require_succeeded(job)
+    return results.job_rewards(session, job, exclude_top_truth=exclude_top_truth)
 
 
 @router.get(
     "/rewards/{reward_id}",
-    summary="Download a reward, value function or policy",
+    summary="Download a reward, value function or policy (json, npy, csv, png)",
     response_model=RewardValues,
     responses={
-        200: {"content": {"application/octet-stream": {}}, "description": "JSON, or a float32 `.npy` file."},
-        404: {"description": "No such reward in your lab."},
-        409: {"description": "The baseline has no value function or policy."},
+        200: {
+            "description": "JSON (`values`), a float32 `.npy`, CSV (`state[,x,y,channel],<quantity>` or one "
+            "column per action), or a PNG heatmap. `ETag` and `Content-Disposition` are set.",
+            "content": {"application/octet-stream": {}, "text/csv": {}, "image/png": {}},
+        },
+        304: {"description": "`If-None-Match` names the current ETag: your copy is up to date."},
+        409: {
+            "description": "The baseline has no value or policy; a PNG of an MDP without a layout or of a "
+            "policy cannot be drawn."
+        },
     },
 )
 def download_reward(
     reward_id: str,
     session: SessionDep,
     lab: LabDep,
-    format: Annotated[Format, Query(description="`json` or `npy` (float32).")] = "json",
-    quantity: Annotated[Quantity, Query(description="`reward`, or a task's `value` or `policy`.")] = "reward",
-) -> Response | RewardValues:
-    """The values of one learned reward; ``?quantity=value|policy`` for a task's value function or policy."""
-    row = session.get(Reward, reward_id)
-    if row is None or row.lab_id != lab.id:
-        raise NotFound(f"No reward {reward_id} in your lab.")
-    blob_id = {"reward": row.reward_blob_id, "value": row.value_blob_id, "policy": row.policy_blob_id}[
-        quantity
-    ]
-    if blob_id is None:
-        raise Conflict(
-            f"Reward {reward_id} is the baseline, which has no {quantity}; ask a task's reward for its value or policy."
+    format: Annotated[
+        Format, Query(description="`json` (default), `npy` (float32), `csv` or `png`.")
+    ] = "json",
+    quantity: Annotated[
+        Quantity, Query(description="`reward`, or a task's `value` function or `policy` (S×A; no png).")
+    ] = "reward",
+    overlay: Annotated[
+        Overlay, Query(description="png only: `demos` draws the demonstrated trajectories on the map.")
+    ] = "none",
+    if_none_match: Annotated[str | None, Header(description="An ETag from an earlier download.")] = None,
+) -> Response:
+    """The values of one learned reward as a file (or a task's value function or policy)."""
+    ctx = results.reward_context(session, reward_id, lab_id=lab.id)
+    return file_response(
+        results.download(
+            session, ctx, fmt=format, quantity=quantity, overlay=overlay, if_none_match=if_none_match
         )
-    array = get_array(session, blob_id).astype(np.float32)
-    if format == "npy":
-        buffer = io.BytesIO()
-        np.save(buffer, array)
-        return Response(
-            buffer.getvalue(),
-            media_type="application/octet-stream",
-            headers={"Content-Disposition": f'attachment; filename="{reward_id}_{quantity}.npy"'},
-        )
-    return RewardValues(reward_id=row.id, n_states=row.n_states, quantity=quantity, values=array.tolist())
+    )

@@ -10,6 +10,7 @@ from fastapi.testclient import TestClient
 
 from service.blobs import put_array
 from service.ids import new_id
+from service.jobstatus import JobStatus
 from service.models.jobs import Job, Reward
 
 CORRIDOR_NEXT_STATE = [[0, 1], [0, 2], [1, 2]]
@@ -109,3 +110,83 @@ def owned_resource_ids(app: FastAPI, client: TestClient, auth: dict[str, str]) -
     )["id"]
     ids["reward_id"] = store_reward(app, job_id=ids["job_id"], shape={"n_states": 3, "n_actions": 2})
     return ids
+
+
+def store_results(
+    app: FastAPI, *, job_id: str, baseline: np.ndarray, task_rewards: list[np.ndarray], n_actions: int
+) -> list[str]:
+    """Mark `job_id` succeeded with these rewards, as the worker would (no worker needed); their ids.
+
+    Rows: the baseline, then one per task of the job in its order, each task with a value function
+    (twice its reward) and a uniform policy.
+    """
+    with app.state.sessionmaker() as session:
+        job = session.get_one(Job, job_id)
+        assert len(task_rewards) == len(job.task_ids), (len(task_rewards), job.task_ids)
+        ids = []
+        for ordinal, values in enumerate([baseline, *task_rewards]):
+            task_id = job.task_ids[ordinal - 1] if ordinal else None
+            n_states = len(values)
+            policy = np.full((n_states, n_actions), 1.0 / n_actions)
+            reward = Reward(
+                id=new_id("rwd"),
+                lab_id=job.lab_id,
+                job_id=job_id,
+                ordinal=ordinal,
+                kind="task" if task_id else "baseline",
+                task_id=task_id,
+                n_states=n_states,
+                n_actions=n_actions,
+                reward_blob_id=put_array(session, values, lab_id=job.lab_id),
+                value_blob_id=put_array(session, 2 * values, lab_id=job.lab_id) if task_id else None,
+                policy_blob_id=put_array(session, policy, lab_id=job.lab_id) if task_id else None,
+            )
+            session.add(reward)
+            ids.append(reward.id)
+        job.status = JobStatus.SUCCEEDED.value
+        session.commit()
+        return ids
+
+
+def fitted_job(
+    app: FastAPI,
+    client: TestClient,
+    auth: dict[str, str],
+    *,
+    mdp: dict[str, Any],
+    demonstrations: dict[str, list[dict[str, list[int]]]],
+    rewards: np.ndarray,
+    demonstrator: str = "patient 1",
+) -> dict[str, Any]:
+    """A demonstrator with one task per `demonstrations` entry (name → trajectories) in `mdp`, and a job over
+    them marked succeeded with ``rewards[0]`` as baseline and ``rewards[1:]`` as task rewards (no worker).
+
+    Returns the ids: ``demonstrator_id``, ``task_ids``, ``job_id`` and ``reward_ids`` (baseline first).
+    """
+    demonstrator_id = make_demonstrator(client, auth, demonstrator)["id"]
+    task_ids = []
+    for name, trajectories in demonstrations.items():
+        task = created(
+            client.post(
+                f"/v1/demonstrators/{demonstrator_id}/tasks",
+                json={"name": name, "mdp_id": mdp["id"]},
+                headers=auth,
+            )
+        )
+        add_demonstrations(client, auth, task["id"], trajectories)
+        task_ids.append(task["id"])
+    job = created(
+        client.post(
+            "/v1/jobs", json={"demonstrator_id": demonstrator_id, "task_ids": task_ids}, headers=auth
+        ),
+        202,
+    )
+    reward_ids = store_results(
+        app, job_id=job["id"], baseline=rewards[0], task_rewards=list(rewards[1:]), n_actions=mdp["n_actions"]
+    )
+    return {
+        "demonstrator_id": demonstrator_id,
+        "task_ids": task_ids,
+        "job_id": job["id"],
+        "reward_ids": reward_ids,
+    }

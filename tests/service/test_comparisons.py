@@ -1,0 +1,290 @@
+"""Comparisons (API.md §7): metrics against scipy on all and visited states, across jobs and demonstrators,
+field-naming 422s, the comparison matrix and key states. Results are stored without a worker (`fitted_job`)."""
+
+from __future__ import annotations
+
+import importlib.util
+import io
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+import pytest
+from fastapi import FastAPI
+from fastapi.testclient import TestClient
+from PIL import Image
+from scipy.stats import pearsonr, spearmanr
+
+from service.render import matrix_pixel_size, matrix_png
+from tests.service.helpers import created, fitted_job, make_task
+from tests.service.test_rewards import N_STATES, RIGHT, UP, WIDTH, grid, random_rewards
+
+ROOT = Path(__file__).resolve().parents[2]
+UP_LEFT = [{"states": [0, 5, 10, 15], "actions": [1, 1, 1]}]
+"""The second session walks up the left column instead of the middle one."""
+
+
+@pytest.fixture
+def mdp(client: TestClient, auth: dict[str, str]) -> dict[str, Any]:
+    """The 5×4 grid both sessions use."""
+    return grid(client, auth)
+
+
+@pytest.fixture
+def sessions(
+    app: FastAPI, client: TestClient, auth: dict[str, str], mdp: dict[str, Any]
+) -> list[dict[str, Any]]:
+    """One patient's two sessions as two demonstrators, each a succeeded job over 'walk right' and 'walk up'."""
+    out = []
+    for seed, name in enumerate(("patient 1, unstimulated", "patient 1, stimulated")):
+        rewards = random_rewards(3, N_STATES, seed=seed)
+        demonstrations = {"walk right": RIGHT, "walk up": UP if seed == 0 else UP_LEFT}
+        fitted = fitted_job(
+            app, client, auth, mdp=mdp, demonstrations=demonstrations, rewards=rewards, demonstrator=name
+        )
+        out.append(fitted | {"rewards": rewards})
+    return out
+
+
+def compare(
+    client: TestClient, auth: dict[str, str], body: dict[str, Any], status: int = 200
+) -> dict[str, Any]:
+    """POST a comparison, asserting the status."""
+    return created(client.post("/v1/comparisons", json=body, headers=auth), status)
+
+
+def visited(*trajectory_lists: list[dict[str, list[int]]]) -> np.ndarray:
+    """Boolean mask of the states in the given trajectories."""
+    mask = np.zeros(N_STATES, dtype=bool)
+    for trajectories in trajectory_lists:
+        for t in trajectories:
+            mask[t["states"]] = True
+    return mask
+
+
+def assert_metrics(result: dict[str, Any], x: np.ndarray, y: np.ndarray) -> None:
+    """Pearson and Spearman as scipy computes them, EPIC as sqrt((1 − r) / 2), on exactly these states."""
+    x, y = x.astype(np.float64), y.astype(np.float64)  # scipy keeps float32 inputs in float32
+    r = pearsonr(x, y)[0]
+    assert result["pearson"] == pytest.approx(r, abs=1e-9)
+    assert result["spearman"] == pytest.approx(spearmanr(x, y)[0], abs=1e-9)
+    assert result["epic_distance"] == pytest.approx(np.sqrt((1 - r) / 2), abs=1e-9)
+    assert result["n_compared"] == len(x)
+
+
+def test_two_rewards_match_scipy_on_all_and_visited_states(
+    client: TestClient, auth: dict[str, str], sessions: list[dict[str, Any]]
+) -> None:
+    job, rewards = sessions[0], sessions[0]["rewards"]
+    task_id, baseline_id = job["reward_ids"][1], job["reward_ids"][0]
+    body = {"a": {"reward_id": task_id}, "b": {"reward_id": baseline_id}}
+    everywhere = compare(client, auth, body)
+    assert_metrics(everywhere, rewards[1], rewards[0])
+    assert (everywhere["states"], everywhere["n_states"]) == ("all", N_STATES)
+    assert everywhere["a"]["label"] == "walk right — patient 1, unstimulated"
+    assert (
+        everywhere["b"]["label"] == "baseline — patient 1, unstimulated"
+        and everywhere["b"]["task_id"] is None
+    )
+
+    # a is the 'walk right' task: its demonstrations; b is the baseline: every task of the job
+    on_visited = compare(client, auth, body | {"states": "visited"})
+    mask = visited(RIGHT, UP)
+    assert_metrics(on_visited, rewards[1][mask], rewards[0][mask])
+    assert on_visited["n_compared"] < N_STATES
+
+    task_only = compare(
+        client, auth, {"a": {"reward_id": task_id}, "b": {"values": rewards[2].tolist()}, "states": "visited"}
+    )
+    assert_metrics(task_only, rewards[1][visited(RIGHT)], rewards[2][visited(RIGHT)])
+    assert task_only["b"] == {
+        "kind": "values",
+        "label": "posted values",
+        "reward_id": None,
+        "job_id": None,
+        "task_id": None,
+        "demonstrator_id": None,
+    }
+
+
+def test_true_reward_and_posted_values_give_the_same_numbers(
+    client: TestClient, auth: dict[str, str], sessions: list[dict[str, Any]]
+) -> None:
+    job = sessions[0]
+    truth = (np.arange(N_STATES) % WIDTH).astype(float)
+    task_id = job["task_ids"][0]
+    a = {"reward_id": job["reward_ids"][1]}
+    missing = client.post("/v1/comparisons", json={"a": a, "b": {"task_id": task_id}}, headers=auth)
+    assert missing.status_code == 409 and "true-reward" in missing.json()["detail"]
+
+    created(
+        client.put(f"/v1/tasks/{task_id}/true-reward", json={"values": truth.tolist()}, headers=auth), 200
+    )
+    with_truth = compare(client, auth, {"a": a, "b": {"task_id": task_id}})
+    with_values = compare(client, auth, {"a": a, "b": {"values": truth.tolist()}})
+    assert_metrics(with_truth, job["rewards"][1], truth)
+    assert {k: with_truth[k] for k in ("pearson", "spearman", "epic_distance")} == {
+        k: with_values[k] for k in ("pearson", "spearman", "epic_distance")
+    }
+    assert with_truth["b"]["kind"] == "true_reward" and with_truth["b"]["task_id"] == task_id
+    listing = client.get(f"/v1/jobs/{job['job_id']}/rewards", headers=auth).json()
+    assert listing["tasks"][0]["truth_pearson"] == pytest.approx(with_truth["pearson"], abs=1e-9)
+
+
+def test_sessions_of_two_demonstrators_compare_by_reward_id(
+    client: TestClient, auth: dict[str, str], sessions: list[dict[str, Any]]
+) -> None:
+    off, on = sessions
+    for index in (0, 1):  # the baselines, then the 'walk right' rewards
+        body = {"a": {"reward_id": off["reward_ids"][index]}, "b": {"reward_id": on["reward_ids"][index]}}
+        result = compare(client, auth, body)
+        assert_metrics(result, off["rewards"][index], on["rewards"][index])
+        assert result["a"]["demonstrator_id"] == off["demonstrator_id"]
+        assert result["b"]["demonstrator_id"] == on["demonstrator_id"]
+        assert result["b"]["job_id"] == on["job_id"] != result["a"]["job_id"]
+        # visited: the states behind a and behind b (baselines: every task of both sessions)
+        mask = visited(RIGHT, UP, UP_LEFT) if index == 0 else visited(RIGHT)
+        result = compare(client, auth, body | {"states": "visited"})
+        assert_metrics(result, off["rewards"][index][mask], on["rewards"][index][mask])
+
+
+def test_bad_bodies_are_422_naming_the_field(
+    app: FastAPI, client: TestClient, auth: dict[str, str], sessions: list[dict[str, Any]]
+) -> None:
+    reward_id = sessions[0]["reward_ids"][1]
+    corridor = fitted_job(
+        app,
+        client,
+        auth,
+        mdp=created(client.get(f"/v1/mdps/{make_task(client, auth)['mdp_id']}", headers=auth), 200),
+        demonstrations={"reach": [{"states": [0, 1, 2], "actions": [1, 1]}]},
+        rewards=random_rewards(2, 3),
+    )
+    small_task = corridor["task_ids"][0]
+    created(client.put(f"/v1/tasks/{small_task}/true-reward", json={"values": [0, 0, 1]}, headers=auth), 200)
+    a = {"reward_id": reward_id}
+    cases: list[tuple[dict[str, Any], str, str]] = [
+        ({"a": a, "b": {"values": [1.0, 2.0]}}, "/b/values", "has 2 values; reward a has 20 states"),
+        ({"a": a, "b": {"reward_id": corridor["reward_ids"][1]}}, "/b/reward_id", "has 3 values"),
+        ({"a": a, "b": {"task_id": small_task}}, "/b/task_id", "has 3 values"),
+        ({"a": a, "b": {"values": [0.0, "x"]}}, "/b/values/1", "number"),
+        ({"a": a, "b": {"reward_id": reward_id, "values": [1.0]}}, "/b", "exactly one"),
+        ({"a": a, "b": {}}, "/b", "exactly one"),
+        ({"a": a, "b": {"values": [1.0] * N_STATES}, "states": "some"}, "/states", "'all' or 'visited'"),
+        ({"a": {"reward_id": "rwd_nope"}, "b": {"values": [1.0]}}, "/a/reward_id", "no reward with this id"),
+        ({"a": a, "b": {"task_id": "task_nope"}}, "/b/task_id", "no task with this id"),
+    ]
+    for body, pointer, message in cases:
+        problem = compare(client, auth, body, 422)
+        assert problem["errors"][0]["pointer"] == pointer, (body, problem)
+        assert message in problem["errors"][0]["message"], (body, problem)
+
+
+def test_another_labs_rewards_and_tasks_are_unknown(
+    client: TestClient, auth: dict[str, str], auth_b: dict[str, str], sessions: list[dict[str, Any]]
+) -> None:
+    theirs = sessions[0]
+    body = {"a": {"reward_id": theirs["reward_ids"][1]}, "b": {"values": [0.0] * N_STATES}}
+    problem = compare(client, auth_b, body, 422)
+    assert problem["errors"] == [
+        {"pointer": "/a/reward_id", "message": "no reward with this id exists in your lab"}
+    ]
+    assert problem == compare(client, auth_b, {"a": {"reward_id": "rwd_nope"}, "b": body["b"]}, 422) | {
+        "detail": problem["detail"]
+    }
+    for path in (
+        f"/v1/jobs/{theirs['job_id']}/comparison-matrix",
+        f"/v1/rewards/{theirs['reward_ids'][1]}/key-states",
+    ):
+        assert client.get(path, headers=auth_b).status_code == 404, path
+
+
+def test_comparison_matrix_is_pairwise_pearson_as_json_and_png(
+    client: TestClient, auth: dict[str, str], sessions: list[dict[str, Any]]
+) -> None:
+    job = sessions[0]
+    matrix = created(client.get(f"/v1/jobs/{job['job_id']}/comparison-matrix", headers=auth), 200)
+    assert matrix["labels"] == ["baseline", "walk right", "walk up"]
+    assert matrix["reward_ids"] == job["reward_ids"] and matrix["task_ids"] == [None, *job["task_ids"]]
+    np.testing.assert_allclose(matrix["matrix"], np.corrcoef(job["rewards"].astype(np.float64)), atol=1e-12)
+
+    png = client.get(f"/v1/jobs/{job['job_id']}/comparison-matrix", params={"format": "png"}, headers=auth)
+    assert png.status_code == 200 and png.headers["content-type"] == "image/png"
+    assert Image.open(io.BytesIO(png.content)).size == matrix_pixel_size(n=3)
+    assert png.content == matrix_png(
+        np.asarray(matrix["matrix"]), labels=matrix["labels"], title="Pearson r — patient 1, unstimulated"
+    )
+    assert (
+        png.headers["Content-Disposition"]
+        == 'inline; filename="patient-1-unstimulated_all-tasks_pearson.png"'
+    )
+
+
+def test_comparison_matrix_of_an_unfinished_job_is_409(client: TestClient, auth: dict[str, str]) -> None:
+    task = make_task(client, auth)
+    client.post(
+        f"/v1/tasks/{task['id']}/demonstrations",
+        json={"trajectories": [{"states": [0, 1], "actions": [1]}]},
+        headers=auth,
+    )
+    job = created(
+        client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
+    )
+    assert client.get(f"/v1/jobs/{job['id']}/comparison-matrix", headers=auth).status_code == 409
+
+
+def test_key_states_are_the_largest_departures_from_the_baseline(
+    client: TestClient, auth: dict[str, str], sessions: list[dict[str, Any]]
+) -> None:
+    job = sessions[0]
+    task, baseline = job["rewards"][1].astype(np.float64), job["rewards"][0].astype(np.float64)
+    found = created(
+        client.get(f"/v1/rewards/{job['reward_ids'][1]}/key-states", params={"top": 4}, headers=auth), 200
+    )
+    expected = np.argsort(-np.abs(task - baseline))[:4]
+    assert [s["state"] for s in found["states"]] == expected.tolist()
+    assert (found["baseline_reward_id"], found["task_id"], found["top"]) == (
+        job["reward_ids"][0],
+        job["task_ids"][0],
+        4,
+    )
+    for rank, item in enumerate(found["states"], start=1):
+        s = item["state"]
+        assert (item["rank"], item["x"], item["y"], item["channel"]) == (rank, s % WIDTH, s // WIDTH, 0)
+        assert item["difference"] == pytest.approx(task[s] - baseline[s])
+        assert (item["reward"], item["baseline"]) == (pytest.approx(task[s]), pytest.approx(baseline[s]))
+
+    of_baseline = client.get(f"/v1/rewards/{job['reward_ids'][0]}/key-states", headers=auth)
+    assert of_baseline.status_code == 409 and "baseline" in of_baseline.json()["detail"]
+    for top in (0, 1001):
+        response = client.get(
+            f"/v1/rewards/{job['reward_ids'][1]}/key-states", params={"top": top}, headers=auth
+        )
+        assert response.status_code == 422 and response.json()["errors"][0]["parameter"] == "top"
+    default = client.get(f"/v1/rewards/{job['reward_ids'][1]}/key-states", headers=auth).json()
+    assert len(default["states"]) == 10
+
+
+def load_example(name: str) -> ModuleType:
+    """A script of docs/examples as a module (not run as __main__)."""
+    spec = importlib.util.spec_from_file_location(name, ROOT / "docs" / "examples" / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_compare_sessions_example_pairs_baselines_and_same_named_tasks(
+    client: TestClient, auth: dict[str, str], sessions: list[dict[str, Any]], tmp_path: Path
+) -> None:
+    script = load_example("compare_sessions")
+    client.headers.update(auth)
+    off, on = sessions
+    rows = script.compare_sessions(client, off["job_id"], on["job_id"])
+    assert [row["label"] for row in rows] == ["baseline", "walk right", "walk up"]
+    for index, row in enumerate(rows):
+        x, y = off["rewards"][index].astype(np.float64), on["rewards"][index].astype(np.float64)
+        assert row["pearson"] == pytest.approx(pearsonr(x, y)[0], abs=1e-9)
+    paths = script.save_matrices(client, [off["job_id"], on["job_id"]], tmp_path)
+    assert [Image.open(p).size for p in paths] == [matrix_pixel_size(n=3)] * 2
