@@ -2,13 +2,16 @@
 
 Both sides must agree on the URL and transport options, so they are computed here from `Settings`:
 the embedded default is Celery's ``filesystem://`` transport with absolute folders under ``data_dir``;
-Redis gets a visibility timeout longer than the longest job so a running job's message is not redelivered.
+Redis gets a visibility timeout, and RabbitMQ a consumer timeout, longer than the longest job so a running
+job's unacknowledged message is neither redelivered nor cut off while it runs.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
+
+from kombu import Exchange, Queue
 
 from service.settings import Settings
 
@@ -24,6 +27,16 @@ def broker_url(settings: Settings) -> str:
 def broker_folder(settings: Settings) -> Path:
     """The absolute folder of the embedded filesystem broker (messages and exchange tables)."""
     return (settings.data_dir / "broker").resolve()
+
+
+def unacked_timeout_s(settings: Settings) -> int:
+    """How long a delivered, unacknowledged message is left with its worker: an hour above the hard time limit."""
+    return settings.job_time_limit_s + 3600
+
+
+def is_amqp(settings: Settings) -> bool:
+    """Whether the broker is RabbitMQ (an ``amqp://`` or ``pyamqp://`` URL, with or without TLS)."""
+    return broker_url(settings).startswith(("amqp://", "amqps://", "pyamqp://"))
 
 
 def transport_options(settings: Settings) -> dict[str, Any]:
@@ -42,8 +55,23 @@ def transport_options(settings: Settings) -> dict[str, Any]:
         }
     if url.startswith(("redis://", "rediss://")):
         # Unacked messages come back after this long: it must exceed the longest job (hard time limit).
-        return {"visibility_timeout": settings.job_time_limit_s + 3600}
+        return {"visibility_timeout": unacked_timeout_s(settings)}
+    if is_amqp(settings):
+        # Publisher confirms: a send returns only once RabbitMQ has taken the message (else it raises).
+        return {"confirm_publish": True}
     return {}
+
+
+def job_queue(settings: Settings) -> Queue:
+    """The durable queue jobs travel on; on RabbitMQ its consumer timeout exceeds the longest job.
+
+    RabbitMQ closes a channel whose delivery stays unacknowledged longer than ``consumer_timeout``
+    (30 min by default); with late acks a job holds its message for its whole run. RabbitMQ 3.12+ reads
+    the per-queue ``x-consumer-timeout``; older servers ignore it and need ``consumer_timeout`` raised.
+    """
+    arguments = {"x-consumer-timeout": unacked_timeout_s(settings) * 1000} if is_amqp(settings) else None
+    name = settings.queue_name
+    return Queue(name, Exchange(name, type="direct"), routing_key=name, queue_arguments=arguments)
 
 
 def celery_config(settings: Settings) -> dict[str, Any]:
@@ -53,6 +81,7 @@ def celery_config(settings: Settings) -> dict[str, Any]:
         "broker_transport_options": transport_options(settings),
         "broker_connection_retry_on_startup": True,
         "task_default_queue": settings.queue_name,
+        "task_queues": [job_queue(settings)],
         "task_ignore_result": True,
         "task_serializer": "json",
         "accept_content": ["json"],

@@ -7,6 +7,7 @@ cannot both win: the loser's UPDATE matches no row. The caller commits.
 
 from __future__ import annotations
 
+from datetime import datetime
 from typing import Any
 
 from sqlalchemy import ColumnElement, update
@@ -63,6 +64,35 @@ def claim(session: Session, job_id: str) -> int | None:
         values={"attempts": Job.attempts + 1, "started_at": now, "heartbeat_at": now, "error": None},
         message="a worker started the job",
     )
+
+
+def touch_queued(
+    session: Session, job_id: str, *, waiting_since_before: datetime, now: datetime, message: str
+) -> int | None:
+    """Restart the wait of a job still queued since before the given time (its message is sent again); log why.
+
+    Not a status change: ``updated_at`` (when the job last entered the queue or was re-sent) becomes ``now``,
+    so of concurrent reapers only the first matches. Returns the job's attempt, or None if it no longer matched.
+    """
+    attempt = session.execute(
+        update(Job)
+        .where(Job.id == job_id, Job.status == JobStatus.QUEUED.value, Job.updated_at < waiting_since_before)
+        .values(updated_at=now)
+        .returning(Job.attempts)
+        .execution_options(synchronize_session=False)
+    ).scalar_one_or_none()
+    if attempt is not None:
+        session.add(
+            JobEvent(
+                job_id=job_id,
+                at=now,
+                kind="status",
+                attempt=attempt,
+                status=JobStatus.QUEUED,
+                message=message,
+            )
+        )
+    return attempt
 
 
 def owned_by(attempt: int) -> tuple[ColumnElement[bool], ...]:

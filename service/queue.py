@@ -11,7 +11,7 @@ from typing import Protocol
 
 from celery import Celery
 
-from service.broker import TASK_NAME, celery_config
+from service.broker import TASK_NAME, celery_config, job_queue
 from service.settings import Settings
 
 
@@ -26,6 +26,10 @@ class JobQueue(Protocol):
         """Send the job to a worker; raise `EnqueueFailed` if the message could not be sent."""
         ...
 
+    def waiting(self) -> int:
+        """Messages in the broker queue not yet delivered to a worker; raise `EnqueueFailed` if unreachable."""
+        ...
+
 
 class CeleryJobQueue:
     """Sends ``metairl.run_job(job_id)`` through Celery to the configured broker."""
@@ -34,6 +38,7 @@ class CeleryJobQueue:
         self._app = Celery("metairl-api", set_as_current=False)
         self._app.conf.update(celery_config(settings))
         self._broker = self._app.conf.broker_url
+        self._queue = job_queue(settings)
 
     def enqueue(self, job_id: str) -> None:
         """Publish the task, retrying the connection briefly before giving up with `EnqueueFailed`."""
@@ -51,3 +56,12 @@ class CeleryJobQueue:
             )
         except Exception as exc:  # kombu raises many types (OperationalError, OSError, ChannelError…)
             raise EnqueueFailed(f"could not reach the job broker {self._broker!r}: {exc}") from exc
+
+    def waiting(self) -> int:
+        """Declare the job queue as the workers do (a no-op if it exists) and return its ready-message count."""
+        try:
+            with self._app.connection_for_write() as connection:
+                _, count, _ = self._queue(connection.default_channel).queue_declare()
+        except Exception as exc:  # as in `enqueue`: any transport error means the broker is unreachable
+            raise EnqueueFailed(f"could not reach the job broker {self._broker!r}: {exc}") from exc
+        return int(count)

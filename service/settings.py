@@ -47,7 +47,13 @@ class Settings(BaseSettings):
     """A running job whose heartbeat is older than this is presumed dead and handed to the reaper."""
 
     reaper_interval_s: float = 15.0
-    """How often each worker looks for running jobs whose heartbeat stopped."""
+    """How often each worker looks for running jobs whose heartbeat stopped and queued jobs whose message was lost."""
+
+    job_requeue_after_s: float = 300.0
+    """A queued job no worker claimed for this long, while the broker queue is empty, has its message sent again."""
+
+    job_max_resends: int = 3
+    """Times the reaper sends a queued job's message again before failing the job (its messages keep getting lost)."""
 
     job_event_interval_s: float = 5.0
     """Least time between two progress events appended to a job's log."""

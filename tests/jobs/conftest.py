@@ -1,7 +1,8 @@
 """Fixtures for the jobs tests: a whole stack per backend (database, broker, API client) and real workers.
 
-Backends: ``embedded`` (SQLite file + Celery ``filesystem://`` broker, what ``metairl serve`` runs) and
-``redis_pg`` (the machine's PostgreSQL + Redis, what docker-compose runs). Workers are real processes
+Backends: ``embedded`` (SQLite file + Celery ``filesystem://`` broker, what ``metairl serve`` runs),
+``redis_pg`` (the machine's PostgreSQL + Redis, what docker-compose runs) and ``rabbitmq_pg`` (PostgreSQL +
+the machine's RabbitMQ). Workers are real processes
 started with ``python -m service.cli worker`` (the ``metairl worker`` command) in their own process group,
 and are always killed in teardown. Heartbeats, the reaper and the stale cutoff are shortened by settings.
 """
@@ -22,6 +23,7 @@ from pathlib import Path
 import psycopg
 import pytest
 from fastapi.testclient import TestClient
+from kombu import Connection
 from psycopg import sql
 
 from service.app import create_app
@@ -30,11 +32,13 @@ from service.settings import Settings
 from tests.conftest import POSTGRES_ADMIN
 
 REPO = Path(__file__).resolve().parents[2]
-REDIS_URL = "redis://127.0.0.1:6379/0"
+BROKERS = {"redis_pg": "redis://127.0.0.1:6379/0", "rabbitmq_pg": "amqp://guest:guest@127.0.0.1:5672//"}
+"""The machine's brokers, by the backend that uses them (each with PostgreSQL)."""
 FAST = {
     "job_heartbeat_s": 0.3,
     "job_stale_after_s": 3.0,
     "reaper_interval_s": 1.0,
+    "job_requeue_after_s": 2.0,
     "job_event_interval_s": 0.5,
     "job_max_attempts": 3,
 }
@@ -121,7 +125,11 @@ def _drop_postgres_database(name: str) -> None:
 
 @pytest.fixture(
     scope="module",
-    params=["embedded", pytest.param("redis_pg", marks=[pytest.mark.redis, pytest.mark.postgres])],
+    params=[
+        "embedded",
+        pytest.param("redis_pg", marks=[pytest.mark.redis, pytest.mark.postgres]),
+        pytest.param("rabbitmq_pg", marks=[pytest.mark.rabbitmq, pytest.mark.postgres]),
+    ],
 )
 def stack(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Stack]:
     """A migrated database, a broker and an API client for one backend; its workers die with it."""
@@ -131,9 +139,9 @@ def stack(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFacto
         "data_dir": root / "var",
         "queue_name": f"metairl-test-{secrets.token_hex(4)}",
     }
-    if request.param == "redis_pg":
+    if request.param in BROKERS:
         database, url = _postgres_database()
-        options |= {"database_url": url, "broker_url": REDIS_URL}
+        options |= {"database_url": url, "broker_url": BROKERS[request.param]}
     settings = Settings(**options, **FAST)  # type: ignore[arg-type]
     workers = Workers(settings, root)
     app = create_app(settings)
@@ -146,6 +154,9 @@ def stack(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFacto
         app.state.engine.dispose()
         if database:
             _drop_postgres_database(database)
+        if settings.broker_url:  # the test's queue is durable on a shared broker: remove it
+            with Connection(settings.broker_url) as broker:
+                broker.default_channel.queue_delete(settings.queue_name)
 
 
 @pytest.fixture

@@ -7,7 +7,11 @@ from collections.abc import Callable
 from typing import Any
 
 from fastapi.testclient import TestClient
+from sqlalchemy.orm import Session, sessionmaker
 
+from service.jobsubmit import create_job
+from service.models.demonstrators import Demonstrator
+from service.schemas.jobs import JobIn
 from tests.service.helpers import add_demonstrations, created, make_demonstrator, make_mdp, make_task
 
 QUICK: dict[str, Any] = {"max_steps": 30, "hidden": [8], "tolerance": 0, "patience": 0}
@@ -73,6 +77,14 @@ def submit(
     job = created(response, 202)
     assert response.headers["location"] == f"/v1/jobs/{job['id']}"
     return job
+
+
+def unsent_job(make_session: sessionmaker[Session], demonstrator_id: str, config: dict[str, Any]) -> str:
+    """A job committed as the API does but whose message was never sent (the API died in between): its id."""
+    with make_session() as session:
+        lab_id = session.get_one(Demonstrator, demonstrator_id).lab_id
+        body = JobIn(demonstrator_id=demonstrator_id, config=config)
+        return create_job(session, lab_id=lab_id, body=body, max_attempts=3).id
 
 
 def wait_for(

@@ -1,7 +1,8 @@
 """Crash recovery without a worker process: the reaper's decisions and attempt fencing, on a real database.
 
-A "crash" here is a job claimed by an attempt whose heartbeat then stops; the reaper and the fenced
-writes are called directly, on SQLite and PostgreSQL, with the embedded broker as the real queue.
+A "crash" here is a job claimed by an attempt whose heartbeat then stops, or a queued job whose message
+was never sent; the reaper and the fenced writes are called directly, on SQLite and PostgreSQL, with the
+embedded broker as the real queue (time moves on through the reaper's ``now``).
 """
 
 from __future__ import annotations
@@ -22,9 +23,9 @@ from service.models.base import utcnow
 from service.models.jobs import Job, JobEvent, Reward
 from service.queue import CeleryJobQueue
 from service.settings import Settings
-from tests.jobs.helpers import QUICK, demonstrated_tasks, submit
+from tests.jobs.helpers import QUICK, demonstrated_tasks, submit, unsent_job
 from worker.monitor import Monitor
-from worker.reaper import reap
+from worker.reaper import RESENT, Reaped, reap, resend_lost
 from worker.runner import store_results
 
 
@@ -174,3 +175,91 @@ def test_monitor_passes_a_cancel_request_to_the_fit(
     client.post(f"/v1/jobs/{job_id}/cancel", headers=auth)
     monitor.beat()
     assert monitor.should_stop() and not monitor.lost
+
+
+def test_attempt_killed_by_the_hard_time_limit_fails_at_once_instead_of_rerunning(
+    app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
+) -> None:
+    job_id = running_job(app, client, auth)
+    with app.state.sessionmaker() as session:  # it kept beating past the limit, then the pool process died
+        beat = session.get_one(Job, job_id).heartbeat_at
+        assert beat is not None
+        session.execute(
+            update(Job)
+            .where(Job.id == job_id)
+            .values(started_at=beat - timedelta(seconds=settings.job_time_limit_s + 60))
+        )
+        session.commit()
+    [reaped] = reap(app.state.sessionmaker, settings, CeleryJobQueue(settings))
+    assert reaped.status is JobStatus.FAILED
+    job = client.get(f"/v1/jobs/{job_id}", headers=auth).json()
+    assert (job["status"], job["attempts"]) == ("failed", 1)
+    assert job["error"].startswith(f"The job ran longer than the limit of {settings.job_time_limit_s} s")
+    assert "METAIRL_JOB_TIME_LIMIT_S" in job["error"]
+
+
+def resends(app: FastAPI, job_id: str) -> list[str]:
+    """The messages of the job's re-send events."""
+    with app.state.sessionmaker() as session:
+        return list(
+            session.execute(
+                select(JobEvent.message).where(JobEvent.job_id == job_id, JobEvent.message.startswith(RESENT))
+            ).scalars()
+        )
+
+
+def test_lost_message_is_sent_again_once_even_with_concurrent_reapers(
+    app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
+) -> None:
+    demonstrator_id, _ = demonstrated_tasks(client, auth, 1)
+    job_id = unsent_job(app.state.sessionmaker, demonstrator_id, QUICK)
+    queue = CeleryJobQueue(settings)
+    assert job_id not in {r.job_id for r in resend_lost(app.state.sessionmaker, settings, queue)}  # too soon
+    later = utcnow() + timedelta(seconds=settings.job_requeue_after_s + 1)
+    results: list[Reaped] = []
+    reapers = [
+        threading.Thread(
+            target=lambda: results.extend(resend_lost(app.state.sessionmaker, settings, queue, now=later))
+        )
+        for _ in range(4)
+    ]
+    for thread in reapers:
+        thread.start()
+    for thread in reapers:
+        thread.join()
+    assert [r.status for r in results if r.job_id == job_id] == [JobStatus.QUEUED]  # the database is shared
+    [message] = resends(app, job_id)
+    assert message.startswith(f"{RESENT} (1 of {settings.job_max_resends}): no worker claimed the job")
+    with app.state.sessionmaker() as session:  # the message that does arrive claims it; any other is skipped
+        assert claim(session, job_id) == 1
+        assert claim(session, job_id) is None
+
+
+def test_queued_job_behind_a_backlog_is_not_sent_again(
+    app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
+) -> None:
+    demonstrator_id, _ = demonstrated_tasks(client, auth, 1)
+    job_id = submit(client, auth, demonstrator_id, QUICK)["id"]  # its message waits in the broker queue
+    later = utcnow() + timedelta(seconds=settings.job_requeue_after_s + 1)
+    assert resend_lost(app.state.sessionmaker, settings, CeleryJobQueue(settings), now=later) == []
+    assert resends(app, job_id) == [] and job_row(app, job_id).status == "queued"
+
+
+def test_job_whose_messages_keep_getting_lost_fails_with_a_sentence_after_the_cap(
+    app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
+) -> None:
+    demonstrator_id, _ = demonstrated_tasks(client, auth, 1)
+    job_id = unsent_job(app.state.sessionmaker, demonstrator_id, QUICK)
+    step = timedelta(seconds=settings.job_requeue_after_s + 1)
+    for i in range(1, settings.job_max_resends + 2):
+        # Each round sends to a queue of its own that nobody reads: the next round finds an empty one again.
+        lost = CeleryJobQueue(settings.model_copy(update={"queue_name": f"lost-{i}"}))
+        reaped = resend_lost(app.state.sessionmaker, settings, lost, now=utcnow() + i * step)
+        assert [r.status for r in reaped if r.job_id == job_id] == [
+            JobStatus.QUEUED if i <= settings.job_max_resends else JobStatus.FAILED
+        ]
+    assert len(resends(app, job_id)) == settings.job_max_resends
+    job = client.get(f"/v1/jobs/{job_id}", headers=auth).json()
+    assert job["status"] == "failed" and job["attempts"] == 0
+    assert job["error"].startswith(f"The job's message was sent {settings.job_max_resends + 1} times")
+    assert "submit the job again" in job["error"]

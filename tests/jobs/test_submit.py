@@ -1,4 +1,4 @@
-"""`POST /v1/jobs` checks, listing, cancelling queued jobs and broker failures — API only, no worker.
+"""`POST /v1/jobs` checks, listing, cancelling queued jobs, idempotent retries and broker failures — API only.
 
 Runs on the root fixtures' SQLite and PostgreSQL databases with the embedded broker (nothing consumes it).
 """
@@ -177,6 +177,25 @@ def test_cancelling_a_queued_job_is_immediate_and_again_is_409(
     assert "already finished (cancelled)" in again.json()["detail"]
     rewards = client.get(f"/v1/jobs/{job_id}/rewards", headers=auth)
     assert rewards.status_code == 409
+
+
+def test_same_idempotency_key_and_body_creates_one_job_and_sends_one_message(
+    client: TestClient, auth: dict[str, str], settings: Settings
+) -> None:
+    demonstrator_id, _ = demonstrated_tasks(client, auth, 1)
+    body = {"demonstrator_id": demonstrator_id, "config": QUICK}
+    headers = {**auth, "Idempotency-Key": "retry-me"}
+    first = client.post("/v1/jobs", json=body, headers=headers)
+    again = client.post("/v1/jobs", json=body, headers=headers)
+    assert (first.status_code, again.status_code) == (202, 202)
+    assert again.headers["idempotent-replayed"] == "true"
+    assert again.json() == first.json() and again.headers["location"] == first.headers["location"]
+    listed = client.get("/v1/jobs", params={"demonstrator_id": demonstrator_id}, headers=auth).json()
+    assert [j["id"] for j in listed["data"]] == [first.json()["id"]]
+    queue = CeleryJobQueue(settings)
+    assert queue.waiting() == 1  # the real (embedded) broker holds exactly one message
+    other = client.post("/v1/jobs", json=body, headers={**auth, "Idempotency-Key": "another"})
+    assert other.json()["id"] != first.json()["id"] and queue.waiting() == 2
 
 
 def test_broker_refusing_the_message_fails_the_job_with_the_reason(

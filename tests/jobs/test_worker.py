@@ -1,5 +1,6 @@
 """Jobs run by real worker processes, on the embedded backend (SQLite + filesystem broker) and on
-PostgreSQL + Redis: results and downloads, progress, cancel, engine failures and a killed worker."""
+PostgreSQL + Redis or RabbitMQ: results and downloads, progress, cancel, engine failures, lost and
+duplicate messages, and a killed worker."""
 
 from __future__ import annotations
 
@@ -28,9 +29,11 @@ from tests.jobs.helpers import (
     demonstrated_tasks,
     ring_tasks,
     submit,
+    unsent_job,
     wait_for,
 )
 from tests.service.helpers import add_demonstrations, make_mdp, make_task
+from worker.reaper import RESENT
 
 pytestmark = [pytest.mark.worker, pytest.mark.slow]
 
@@ -147,6 +150,53 @@ def test_engine_failure_fails_the_job_with_a_sentence_naming_the_task(
     assert reward_rows(stack, job.id) == 0
 
 
+def status_events(stack: Stack, job_id: str) -> list[tuple[str, int]]:
+    """(status, attempt) of each status event of the job, in order."""
+    events = all_events(stack.client, stack.auth, job_id)
+    return [(e["status"], e["attempt"]) for e in events if e["kind"] == "status"]
+
+
+def test_queued_job_whose_message_was_lost_is_sent_again_and_succeeds(
+    stack: Stack, worker: subprocess.Popen[bytes]
+) -> None:
+    client, auth = stack.client, stack.auth
+    demonstrator_id, _ = demonstrated_tasks(client, auth)
+    job_id = unsent_job(client.app.state.sessionmaker, demonstrator_id, QUICK)  # type: ignore[attr-defined]
+    done = wait_for(client, auth, job_id, timeout=30)
+    assert (done["status"], done["attempts"]) == ("succeeded", 1), done
+    assert status_events(stack, job_id) == [("queued", 0), ("queued", 0), ("running", 1), ("succeeded", 1)]
+    resent = [e for e in all_events(client, auth, job_id) if (e["message"] or "").startswith(RESENT)]
+    assert len(resent) == 1 and "1 of 3" in resent[0]["message"]
+
+
+def test_duplicate_messages_for_a_running_or_finished_job_are_skipped(
+    stack: Stack, worker: subprocess.Popen[bytes]
+) -> None:
+    client, auth = stack.client, stack.auth
+    demonstrator_id, task_ids = demonstrated_tasks(client, auth)
+    job_id = submit(client, auth, demonstrator_id, QUICK)["id"]
+    queue = CeleryJobQueue(stack.settings)
+    queue.enqueue(job_id)  # arrives while the job runs (or after it finished)
+    assert wait_for(client, auth, job_id)["status"] == "succeeded"
+    queue.enqueue(job_id)  # arrives after it finished
+
+    def skipped() -> int:
+        """How often the workers' logs say they skipped a message of this job."""
+        return sum(
+            log.read_text().count(f"job {job_id} is not queued") for log in stack.workers.logs.glob("*.log")
+        )
+
+    deadline = time.monotonic() + 15
+    while skipped() < 2:
+        assert time.monotonic() < deadline, f"the worker skipped {skipped()} of the 2 duplicate messages"
+        time.sleep(0.2)
+    assert queue.waiting() == 0
+    job = client.get(f"/v1/jobs/{job_id}", headers=auth).json()
+    assert (job["status"], job["attempts"]) == ("succeeded", 1)
+    assert status_events(stack, job_id) == [("queued", 0), ("running", 1), ("succeeded", 1)]
+    assert reward_rows(stack, job_id) == 1 + len(task_ids)
+
+
 def test_killed_worker_job_is_rerun_by_the_reaper_with_one_result_set(
     stack: Stack, worker: subprocess.Popen[bytes]
 ) -> None:
@@ -156,7 +206,9 @@ def test_killed_worker_job_is_rerun_by_the_reaper_with_one_result_set(
     fresh = stack.workers.start()  # its pool has not imported torch yet: the kill lands early in attempt 1
     job_id = submit(client, auth, demonstrator_id, LONG)["id"]
     wait_for(client, auth, job_id, lambda j: j["status"] == "running")
-    stack.workers.kill(fresh)  # SIGKILL the whole worker: nothing reports, the in-flight message is gone
+    # SIGKILL the whole worker: nothing reports; the in-flight message is gone (files), held until the
+    # visibility timeout (Redis) or redelivered at once (RabbitMQ) to be skipped: the job is still running.
+    stack.workers.kill(fresh)
     assert client.get(f"/v1/jobs/{job_id}", headers=auth).json()["status"] == "running"
 
     stack.workers.start()
@@ -165,15 +217,20 @@ def test_killed_worker_job_is_rerun_by_the_reaper_with_one_result_set(
     assert done["attempts"] == 2
     assert reward_rows(stack, job_id) == 1 + len(task_ids)
     events = all_events(client, auth, job_id)
-    statuses = [(e["status"], e["attempt"]) for e in events if e["kind"] == "status"]
-    assert statuses == [("queued", 0), ("running", 1), ("queued", 1), ("running", 2), ("succeeded", 2)]
+    assert status_events(stack, job_id) == [
+        ("queued", 0),
+        ("running", 1),
+        ("queued", 1),
+        ("running", 2),
+        ("succeeded", 2),
+    ]
     requeued = next(e for e in events if e["status"] == "queued" and e["attempt"] == 1)
     assert "stopped sending heartbeats" in requeued["message"]
 
 
 def test_worker_answers_the_compose_health_check(stack: Stack, worker: subprocess.Popen[bytes]) -> None:
-    """docker-compose.yml's worker health check, run natively (remote control exists on Redis, not on files)."""
-    if stack.name != "redis_pg":
+    """docker-compose.yml's worker health check, run natively (remote control exists on Redis and RabbitMQ)."""
+    if stack.name == "embedded":
         pytest.skip("the embedded broker has no remote control; compose runs Redis")
     check = subprocess.run(
         [
