@@ -31,7 +31,11 @@ SHOWCASE_LOSS = "huber"
 
 @dataclass(frozen=True)
 class Summary:
-    """Accuracy of one (loss, task count) cell over every world and task: mean ± sd of n Pearson values."""
+    """Accuracy of one (loss, task count) cell: mean ± sd over ``n`` worlds of each world's mean task Pearson.
+
+    The same statistic as benchmarks/accuracy.py (population sd over worlds), so the full demo's table
+    can be read against the committed benchmark.
+    """
 
     loss: str
     n_tasks: int
@@ -49,15 +53,15 @@ def summarize(outcomes: Sequence[JobOutcome]) -> list[Summary]:
             cells.setdefault((outcome.plan.loss, outcome.plan.n_tasks), []).append(outcome)
     out = []
     for (loss, n_tasks), group in cells.items():
-        values = np.array([p for o in group for p in o.pearsons])
+        per_world = np.array([np.mean(o.pearsons) for o in group])
         baselines = [o.baseline_pearson for o in group if o.baseline_pearson is not None]
         out.append(
             Summary(
                 loss=loss,
                 n_tasks=n_tasks,
-                mean=float(values.mean()),
-                sd=float(values.std(ddof=1)) if values.size > 1 else 0.0,
-                n=int(values.size),
+                mean=float(per_world.mean()),
+                sd=float(per_world.std()),
+                n=len(group),
                 baseline_mean=float(np.mean(baselines)),
             )
         )
@@ -89,7 +93,7 @@ def pearson_figure(
     ax.minorticks_off()
     ax.set_xlabel("number of tasks")
     ax.set_ylabel("Pearson r with the true reward (goal excluded)")
-    ax.set_title("Reward accuracy by sharing loss (mean ± 1 sd)")
+    ax.set_title("Reward accuracy by sharing loss (mean ± sd over worlds)")
     ax.grid(alpha=0.3)
     if drawn:
         ax.legend(title="sharing loss")
@@ -194,7 +198,7 @@ def _markdown(
         f"{settings.n_tasks} goal tasks per world, {settings.n_demos} demonstrations per task, "
         f"max_steps {settings.max_steps}, seed {settings.seed}.",
         "",
-        "## Pearson r of each learned task reward with its true reward (goal state excluded), mean ± sd",
+        "## Pearson r of each learned task reward with its true reward (goal state excluded), mean ± sd over worlds",
         "",
         table,
         "",

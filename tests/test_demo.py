@@ -114,7 +114,7 @@ def test_summary_figure_and_report_files(tmp_path: Path) -> None:
     outcomes = fake_outcomes(TINY, noise=0.3, failed=failed)
     cells = {(s.loss, s.n_tasks): s for s in summarize(outcomes)}
     assert set(cells) == {("none", 1), ("none", 3), ("huber", 1), ("huber", 3)}
-    assert cells["none", 3].n == 6 and cells["huber", 3].n == 3  # one huber job failed
+    assert cells["none", 3].n == 2 and cells["huber", 3].n == 1  # worlds; one huber job failed
     assert cells["huber", 1].mean > cells["none", 1].mean and cells["huber", 1].sd >= 0
 
     fig = pearson_figure(list(cells.values()), losses=("none", "l2", "huber"), task_counts=TINY.task_counts)

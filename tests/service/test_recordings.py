@@ -6,6 +6,9 @@ from __future__ import annotations
 import csv
 import io
 import json
+import subprocess
+import sys
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -17,6 +20,7 @@ from metairl_engine.patient import PatientSettings, simulate_patient
 from service.inputs import load_trajectories
 from tests.service.helpers import created, make_demonstrator, make_mdp
 
+REPO = Path(__file__).resolve().parents[2]
 SIZE = 20
 DIRECTIONS = ("forward", "right", "backward left")
 PLATE = {"x_min": -0.2, "x_max": 0.2, "y_min": -0.2, "y_max": 0.2}
@@ -237,3 +241,18 @@ def test_another_lab_gets_404(
     assert response.status_code == 404, response.text
     assert client.get(f"/v1/demonstrators/{dem['id']}/recordings", headers=auth_b).status_code == 404
     assert client.get("/v1/mdps", headers=auth_b).json()["data"] == []
+
+
+def test_cutting_a_recording_never_imports_torch() -> None:
+    code = (
+        "import sys, numpy as np; import service.recordings as r; from service.schemas.recordings import RecordingIn\n"
+        "t = np.arange(0, 8, 0.01); x = 0.15 * np.sin(np.pi * t / 2).clip(0) ** 2\n"
+        "body = RecordingIn.model_validate({'bounds': {'x_min': -0.2, 'x_max': 0.2, 'y_min': -0.2, 'y_max': 0.2},"
+        " 'samples': [{'t': a, 'x': b, 'y': 0.0} for a, b in zip(t.tolist(), x.tolist())]})\n"
+        "s = r.json_samples(body)\n"
+        "cut = r.demonstrations(r.Recording.build(t=s.t, x=s.x, y=s.y, bounds=body.bounds),"
+        " discretise_settings=r.DiscretiseSettings(width=20, height=20), segment_settings=body.segment)\n"
+        "print(sorted(cut.by_label), 'torch' in sys.modules)"
+    )
+    done = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "['right'] False"
