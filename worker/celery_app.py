@@ -10,7 +10,6 @@ also runs the reaper, which re-queues or fails running jobs whose heartbeat stop
 from __future__ import annotations
 
 import logging
-import os
 from typing import Any, ClassVar
 
 from celery import Celery, bootsteps
@@ -19,10 +18,6 @@ from service.broker import celery_config
 from service.settings import get_settings
 
 log = logging.getLogger(__name__)
-
-# Before torch loads: OpenMP threads sleep instead of spinning while they wait. A worker shares its cores
-# with the API and other processes; spinning threads then made fits 5-10x slower (benchmarks/RESULTS.md).
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 
 class ReaperStep(bootsteps.StartStopStep):
