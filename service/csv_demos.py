@@ -7,18 +7,15 @@ CSV line.
 
 from __future__ import annotations
 
-import csv
-import io
 import re
-from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from metairl_engine import InvalidInput, Trajectory
+from service.csv_rows import MAX_ERRORS, csv_error, csv_rows
 from service.problems import Unprocessable
 
 COLUMNS = ("trajectory", "step", "state", "action")
 POINTER = re.compile(r"^/trajectories/(\d+)(?:/(states|actions)(?:/(\d+))?)?")
-MAX_ERRORS = 20
 INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
 
 
@@ -50,29 +47,10 @@ class CsvDemonstrations:
 
 def parse_csv(data: bytes) -> CsvDemonstrations:
     """Parse an uploaded CSV into trajectories; 422 naming the line of every malformed row."""
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise _error([("", f"the file is not UTF-8 text ({exc})")]) from exc
-    reader = csv.reader(io.StringIO(text))
-    header = [h.strip().lower() for h in next(reader, [])]
-    missing = [c for c in COLUMNS if c not in header]
-    if missing:
-        raise _error(
-            [
-                (
-                    "",
-                    f"CSV line 1: the header must name the columns {', '.join(COLUMNS)}; missing {', '.join(missing)}",
-                )
-            ]
-        )
-    col = {c: header.index(c) for c in COLUMNS}
+    _, rows = csv_rows(data, required=COLUMNS)
     groups: dict[str, list[tuple[int, int, int | None, int]]] = {}
     errors: list[tuple[str, str]] = []
-    for line, row in enumerate(reader, start=2):
-        if not any(cell.strip() for cell in row):
-            continue
-        cells = {c: (row[i].strip() if i < len(row) else "") for c, i in col.items()}
+    for line, cells in rows:
         parsed = {c: _int_or_none(cells[c]) for c in ("step", "state", "action")}
         bad = [c for c in ("step", "state") if parsed[c] is None] + (
             ["action"] if cells["action"] and parsed["action"] is None else []
@@ -89,9 +67,9 @@ def parse_csv(data: bytes) -> CsvDemonstrations:
         assert step is not None and state is not None
         groups.setdefault(cells["trajectory"], []).append((step, state, parsed["action"], line))
     if errors:
-        raise _error(errors)
+        raise csv_error(errors)
     if not groups:
-        raise _error([("/trajectories", "the CSV has no data rows")])
+        raise csv_error([("/trajectories", "the CSV has no data rows")])
     return _assemble(groups)
 
 
@@ -128,7 +106,7 @@ def _assemble(groups: dict[str, list[tuple[int, int, int | None, int]]]) -> CsvD
         if len(errors) >= MAX_ERRORS:
             break
     if errors:
-        raise _error(errors)
+        raise csv_error(errors)
     return out
 
 
@@ -139,9 +117,3 @@ def _int_or_none(cell: str) -> int | None:
     except ValueError:
         return None
     return value if INT32_MIN <= value <= INT32_MAX else None
-
-
-def _error(items: Iterable[tuple[str, str]]) -> Unprocessable:
-    """A 422 listing (pointer, message) pairs; the detail repeats the first one."""
-    errors = [{"pointer": p, "message": m} for p, m in items]
-    return Unprocessable(f"The CSV is invalid: {errors[0]['message']}", errors=errors)

@@ -13,8 +13,6 @@ rolls the whole upload back. numpy only: the API process never imports torch.
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import re
 from dataclasses import asdict, dataclass
@@ -33,6 +31,7 @@ from service.blobs import put_array
 from service.crud import mdps as crud_mdps
 from service.crud import tasks as crud_tasks
 from service.crud.demonstrations import add_demonstrations
+from service.csv_rows import MAX_ERRORS, csv_error, csv_rows
 from service.ids import new_id
 from service.models.demonstrators import Demonstrator, Task
 from service.models.mdps import Mdp
@@ -48,7 +47,6 @@ INSTRUCTION_COLUMN = "instruction"
 OBJECT_FIELDS = ("bounds", "grid", "discretise", "segment")
 """Form fields of a CSV upload that hold a JSON object (the others are plain strings)."""
 SAMPLE_POINTER = re.compile(r"^/samples/(\d+)(/|$)")
-MAX_ERRORS = 20
 
 
 @dataclass(frozen=True)
@@ -91,27 +89,13 @@ def json_samples(body: RecordingIn) -> Samples:
 
 def csv_samples(data: bytes) -> Samples:
     """Parse a CSV with header ``t,x,y`` and optionally ``instruction``; 422 naming sample and line."""
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise _csv_error([("", f"the file is not UTF-8 text ({exc})")]) from exc
-    reader = csv.reader(io.StringIO(text))
-    header = [h.strip().lower() for h in next(reader, [])]
-    missing = [c for c in REQUIRED_COLUMNS if c not in header]
-    if missing:
-        raise _csv_error(
-            [("", f"CSV line 1: the header must name the columns t, x, y; missing {', '.join(missing)}")]
-        )
-    col = {c: header.index(c) for c in (*REQUIRED_COLUMNS, INSTRUCTION_COLUMN) if c in header}
+    present, rows = csv_rows(data, required=REQUIRED_COLUMNS, optional=(INSTRUCTION_COLUMN,))
     values: dict[str, list[float]] = {c: [] for c in REQUIRED_COLUMNS}
     instruction: list[str | None] = []
     lines: list[int] = []
     errors: list[tuple[str, str]] = []
-    for line, row in enumerate(reader, start=2):
-        if not any(cell.strip() for cell in row):
-            continue
+    for line, cells in rows:
         k = len(lines)
-        cells = {c: (row[i].strip() if i < len(row) else "") for c, i in col.items()}
         for c in REQUIRED_COLUMNS:
             try:
                 values[c].append(float(cells[c]))
@@ -123,21 +107,15 @@ def csv_samples(data: bytes) -> Samples:
         if len(errors) >= MAX_ERRORS:
             break
     if errors:
-        raise _csv_error(errors)
+        raise csv_error(errors)
     return Samples(
         t=values["t"],
         x=values["x"],
         y=values["y"],
-        instruction=instruction if INSTRUCTION_COLUMN in col else None,
+        instruction=instruction if INSTRUCTION_COLUMN in present else None,
         format="csv",
         lines=lines,
     )
-
-
-def _csv_error(items: list[tuple[str, str]]) -> Unprocessable:
-    """A 422 listing (pointer, message) pairs of a CSV that could not be read."""
-    errors = [{"pointer": p, "message": m} for p, m in items]
-    return Unprocessable(f"The CSV is invalid: {errors[0]['message']}", errors=errors)
 
 
 def form_options(form: FormData) -> RecordingOptions:
