@@ -38,6 +38,7 @@ TAGS = [
     {"name": "demonstrations", "description": "Trajectories of a task, checked against its MDP (§4)."},
     {"name": "jobs", "description": "Fits run by workers: submit, follow progress, cancel (§5)."},
     {"name": "rewards", "description": "Learned rewards, value functions and policies of a job (§6)."},
+    {"name": "comparisons", "description": "Pearson, Spearman and EPIC distance between rewards (§7)."},
     {"name": "health", "description": "Liveness and readiness probes (no authentication)."},
 ]
 
