@@ -30,7 +30,19 @@ from service.models.base import ID_LENGTH, Base, CreatedAtMixin, UTCDateTime, ut
 STATUS_VALUES = ", ".join(f"'{s.value}'" for s in JobStatus)
 
 
-class Job(CreatedAtMixin, Base):
+class ProgressColumns:
+    """The engine's progress sample (`metairl_engine.fit.Progress`): on the job row (latest) and on its events."""
+
+    step: Mapped[int | None] = mapped_column(Integer)
+    max_steps: Mapped[int | None] = mapped_column(Integer)
+    loss: Mapped[float | None] = mapped_column(Float)
+    irl_loss: Mapped[float | None] = mapped_column(Float)
+    sharing_loss: Mapped[float | None] = mapped_column(Float)
+    heldout_nll: Mapped[float | None] = mapped_column(Float)
+    elapsed_s: Mapped[float | None] = mapped_column(Float)
+
+
+class Job(ProgressColumns, CreatedAtMixin, Base):
     """One fit of a demonstrator's tasks: inputs, config, lifecycle and latest progress."""
 
     __tablename__ = "jobs"
@@ -56,13 +68,6 @@ class Job(CreatedAtMixin, Base):
     max_attempts: Mapped[int] = mapped_column(Integer)
     error: Mapped[str | None] = mapped_column(Text)
 
-    step: Mapped[int | None] = mapped_column(Integer)
-    max_steps: Mapped[int | None] = mapped_column(Integer)
-    loss: Mapped[float | None] = mapped_column(Float)
-    irl_loss: Mapped[float | None] = mapped_column(Float)
-    sharing_loss: Mapped[float | None] = mapped_column(Float)
-    heldout_nll: Mapped[float | None] = mapped_column(Float)
-    elapsed_s: Mapped[float | None] = mapped_column(Float)
     best_step: Mapped[int | None] = mapped_column(Integer)
 
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
@@ -71,7 +76,7 @@ class Job(CreatedAtMixin, Base):
     heartbeat_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
 
 
-class JobEvent(Base):
+class JobEvent(ProgressColumns, Base):
     """One line of a job's log: a status change or a (throttled) progress sample."""
 
     __tablename__ = "job_events"
@@ -86,13 +91,6 @@ class JobEvent(Base):
     attempt: Mapped[int] = mapped_column(Integer)
     status: Mapped[str | None] = mapped_column(String(16))
     message: Mapped[str | None] = mapped_column(Text)
-    step: Mapped[int | None] = mapped_column(Integer)
-    max_steps: Mapped[int | None] = mapped_column(Integer)
-    loss: Mapped[float | None] = mapped_column(Float)
-    irl_loss: Mapped[float | None] = mapped_column(Float)
-    sharing_loss: Mapped[float | None] = mapped_column(Float)
-    heldout_nll: Mapped[float | None] = mapped_column(Float)
-    elapsed_s: Mapped[float | None] = mapped_column(Float)
 
 
 class Reward(CreatedAtMixin, Base):
