@@ -10,12 +10,16 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any
 
+import numpy as np
 from sqlalchemy import ColumnElement, update
 from sqlalchemy.orm import Session
 
+from service import exports
+from service.blobs import put_array
+from service.ids import new_id
 from service.jobstatus import JobStatus
 from service.models.base import utcnow
-from service.models.jobs import Job, JobEvent
+from service.models.jobs import Job, JobEvent, Reward
 from service.queue import EnqueueFailed, JobQueue
 
 
@@ -115,3 +119,37 @@ def send_or_fail(session: Session, queue: JobQueue, job_id: str) -> bool:
         session.commit()
         return False
     return True
+
+
+def add_reward(
+    session: Session,
+    job: Job,
+    *,
+    ordinal: int,
+    n_actions: int,
+    reward: np.ndarray,
+    value: np.ndarray | None = None,
+    policy: np.ndarray | None = None,
+) -> Reward:
+    """Add one result row of `job` (ordinal 0: the baseline; i + 1: task i) with its arrays and summary.
+
+    The summary is computed here, once, so listing a job's rewards never loads their arrays.
+    """
+    task_id = job.task_ids[ordinal - 1] if ordinal else None
+    lab_id = job.lab_id
+    row = Reward(
+        id=new_id("rwd"),
+        lab_id=lab_id,
+        job_id=job.id,
+        ordinal=ordinal,
+        kind="task" if task_id else "baseline",
+        task_id=task_id,
+        n_states=int(reward.shape[0]),
+        n_actions=n_actions,
+        reward_blob_id=put_array(session, reward, lab_id=lab_id),
+        value_blob_id=None if value is None else put_array(session, value, lab_id=lab_id),
+        policy_blob_id=None if policy is None else put_array(session, policy, lab_id=lab_id),
+        summary=exports.summary(reward),
+    )
+    session.add(row)
+    return row

@@ -107,8 +107,8 @@ def job_rewards(session: Session, job: Job, *, exclude_top_truth: bool) -> JobRe
     refs = []
     for row in _job_reward_rows(session, job):
         ctx = _context(session, row)
-        values = get_array(session, row.reward_blob_id)
         truth = load_true_reward(session, row.task_id) if row.task_id else None
+        values = None if truth is None else get_array(session, row.reward_blob_id)
         refs.append(
             RewardRef(
                 reward_id=row.id,
@@ -117,9 +117,11 @@ def job_rewards(session: Session, job: Job, *, exclude_top_truth: bool) -> JobRe
                 task_name=ctx.task.name if ctx.task else None,
                 n_states=row.n_states,
                 n_actions=row.n_actions,
-                summary=RewardSummary.model_validate(exports.summary(values)),
-                truth_pearson=None if truth is None else pearson(values, truth),
-                truth_pearson_excluding_top=_pearson_below_top(values, truth) if exclude_top_truth else None,
+                summary=RewardSummary.model_validate(row.summary),
+                truth_pearson=None if values is None or truth is None else pearson(values, truth),
+                truth_pearson_excluding_top=(
+                    _pearson_below_top(values, truth) if exclude_top_truth and values is not None else None
+                ),
                 links=reward_links(row.id, drawable=ctx.layout is not None, task=ctx.task is not None),
             )
         )

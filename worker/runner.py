@@ -18,14 +18,11 @@ from sqlalchemy.orm import Session, sessionmaker
 from metairl_engine.config import FitConfig
 from metairl_engine.errors import Cancelled, InvalidInput
 from metairl_engine.fit import FitResult, TaskData, fit
-from metairl_engine.metrics import pearson
-from service.blobs import put_array
-from service.ids import new_id
-from service.inputs import load_mdp, load_trajectories, load_true_reward
+from service.inputs import load_mdp, load_trajectories
 from service.jobstatus import JobStatus
-from service.jobstore import owned_by, transition
+from service.jobstore import add_reward, owned_by, transition
 from service.models.demonstrators import Task
-from service.models.jobs import Job, Reward
+from service.models.jobs import Job
 from service.settings import Settings, get_settings
 from worker.context import sessions
 from worker.monitor import Monitor, progress_values
@@ -45,7 +42,7 @@ def run_attempt(job_id: str, attempt: int, monitor: Monitor) -> None:
         try:
             with make_session() as session:
                 job = session.get_one(Job, job_id)
-                task_ids, lab_id = list(job.task_ids), job.lab_id
+                task_ids = list(job.task_ids)
                 config = FitConfig.from_dict(job.config)
                 tasks = load_tasks(session, task_ids)
             torch.set_num_threads(
@@ -64,7 +61,7 @@ def run_attempt(job_id: str, attempt: int, monitor: Monitor) -> None:
         reason = explain_failure(exc, task_ids=task_ids, settings=settings)
         finish(make_session, job_id, attempt, JobStatus.FAILED, values={"error": reason}, message=reason)
     else:
-        store_results(make_session, job_id, attempt, lab_id=lab_id, task_ids=task_ids, result=result)
+        store_results(make_session, job_id, attempt, result=result)
 
 
 SMALL_PROBLEM = 20_000
@@ -154,12 +151,10 @@ def store_results(
     job_id: str,
     attempt: int,
     *,
-    lab_id: str,
-    task_ids: Sequence[str],
     result: FitResult,
 ) -> None:
     """Write every reward, value and policy and mark the job succeeded, in one transaction, if still owned."""
-    n_states, n_actions = result.baseline.shape[0], result.policies.shape[2]
+    n_actions = result.policies.shape[2]
     with make_session() as session:
         last = result.history[-1] if result.history else None
         done = transition(
@@ -174,35 +169,17 @@ def store_results(
         if done is None:
             log.warning("job %s: attempt %d no longer owns the job; results discarded", job_id, attempt)
             return
-        session.add(
-            Reward(
-                id=new_id("rwd"),
-                lab_id=lab_id,
-                job_id=job_id,
-                ordinal=0,
-                kind="baseline",
-                n_states=n_states,
+        job = session.get_one(Job, job_id)
+        add_reward(session, job, ordinal=0, n_actions=n_actions, reward=result.baseline)
+        for i in range(len(result.rewards)):
+            add_reward(
+                session,
+                job,
+                ordinal=i + 1,
                 n_actions=n_actions,
-                reward_blob_id=put_array(session, result.baseline, lab_id=lab_id),
-            )
-        )
-        for i, task_id in enumerate(task_ids):
-            truth = load_true_reward(session, task_id)
-            session.add(
-                Reward(
-                    id=new_id("rwd"),
-                    lab_id=lab_id,
-                    job_id=job_id,
-                    ordinal=i + 1,
-                    kind="task",
-                    task_id=task_id,
-                    n_states=n_states,
-                    n_actions=n_actions,
-                    reward_blob_id=put_array(session, result.rewards[i], lab_id=lab_id),
-                    value_blob_id=put_array(session, result.values[i], lab_id=lab_id),
-                    policy_blob_id=put_array(session, result.policies[i], lab_id=lab_id),
-                    truth_pearson=None if truth is None else pearson(result.rewards[i], truth),
-                )
+                reward=result.rewards[i],
+                value=result.values[i],
+                policy=result.policies[i],
             )
         session.commit()
     log.info("job %s: succeeded", job_id)

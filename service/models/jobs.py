@@ -115,5 +115,5 @@ class Reward(CreatedAtMixin, Base):
     reward_blob_id: Mapped[str] = mapped_column(String(ID_LENGTH), ForeignKey("blobs.id"))
     value_blob_id: Mapped[str | None] = mapped_column(String(ID_LENGTH), ForeignKey("blobs.id"))
     policy_blob_id: Mapped[str | None] = mapped_column(String(ID_LENGTH), ForeignKey("blobs.id"))
-    truth_pearson: Mapped[float | None] = mapped_column(Float)
-    """Pearson correlation with the task's true reward, when one was given."""
+    summary: Mapped[dict[str, Any]] = mapped_column(JSON)
+    """min, max, mean, std, argmax_state, argmin_state of the reward (`service.exports.summary`)."""

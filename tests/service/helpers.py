@@ -8,10 +8,9 @@ import numpy as np
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
-from service.blobs import put_array
-from service.ids import new_id
 from service.jobstatus import JobStatus
-from service.models.jobs import Job, Reward
+from service.jobstore import add_reward
+from service.models.jobs import Job
 
 CORRIDOR_NEXT_STATE = [[0, 1], [0, 2], [1, 2]]
 """A 3-state corridor: action 0 steps left, action 1 steps right (walls keep you in place)."""
@@ -80,17 +79,13 @@ def store_reward(app: FastAPI, *, job_id: str, shape: dict[str, Any]) -> str:
     """A learned-reward row for `job_id`, written straight to the database (no worker needed); its id."""
     with app.state.sessionmaker() as session:
         job = session.get_one(Job, job_id)
-        reward = Reward(
-            id=new_id("rwd"),
-            lab_id=job.lab_id,
-            job_id=job_id,
+        reward = add_reward(
+            session,
+            job,
             ordinal=0,
-            kind="baseline",
-            n_states=shape["n_states"],
             n_actions=shape["n_actions"],
-            reward_blob_id=put_array(session, np.zeros(shape["n_states"]), lab_id=job.lab_id),
+            reward=np.zeros(shape["n_states"], dtype=np.float32),
         )
-        session.add(reward)
         session.commit()
         return reward.id
 
@@ -128,20 +123,15 @@ def store_results(
             task_id = job.task_ids[ordinal - 1] if ordinal else None
             n_states = len(values)
             policy = np.full((n_states, n_actions), 1.0 / n_actions)
-            reward = Reward(
-                id=new_id("rwd"),
-                lab_id=job.lab_id,
-                job_id=job_id,
+            reward = add_reward(
+                session,
+                job,
                 ordinal=ordinal,
-                kind="task" if task_id else "baseline",
-                task_id=task_id,
-                n_states=n_states,
                 n_actions=n_actions,
-                reward_blob_id=put_array(session, values, lab_id=job.lab_id),
-                value_blob_id=put_array(session, 2 * values, lab_id=job.lab_id) if task_id else None,
-                policy_blob_id=put_array(session, policy, lab_id=job.lab_id) if task_id else None,
+                reward=values,
+                value=2 * values if task_id else None,
+                policy=policy if task_id else None,
             )
-            session.add(reward)
             ids.append(reward.id)
         job.status = JobStatus.SUCCEEDED.value
         session.commit()
