@@ -151,14 +151,7 @@ def test_only_the_attempt_that_owns_the_job_can_store_results(
     zombie.beat()
     assert zombie.lost and zombie.should_stop()
     for attempt, expected in ((1, 0), (2, 3), (2, 3)):  # the zombie, the owner, the owner again
-        store_results(
-            app.state.sessionmaker,
-            job_id,
-            attempt,
-            lab_id=job.lab_id,
-            task_ids=job.task_ids,
-            result=fake_result(2),
-        )
+        store_results(app.state.sessionmaker, job_id, attempt, result=fake_result(2))
         assert count() == expected
     assert job_row(app, job_id).status == "succeeded"
     rewards = client.get(f"/v1/jobs/{job_id}/rewards", headers=auth).json()

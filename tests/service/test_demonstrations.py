@@ -10,7 +10,7 @@ from service.inputs import load_trajectories
 from tests.service.helpers import add_demonstrations, created, make_task
 
 
-def post_csv(client: TestClient, auth: dict[str, str], task_id: str, text: str):  # type: ignore[no-untyped-def]
+def post_csv(client: TestClient, auth: dict[str, str], task_id: str, text: str):
     """Upload `text` as a CSV file."""
     return client.post(
         f"/v1/tasks/{task_id}/demonstrations", files={"file": ("demos.csv", text.encode())}, headers=auth

@@ -23,7 +23,7 @@ def npz_bytes(**arrays: np.ndarray) -> bytes:
     return buffer.getvalue()
 
 
-def problem(response, status: int = 422) -> dict:  # type: ignore[no-untyped-def]
+def problem(response, status: int = 422) -> dict:
     """The problem document of an error response, checked for its media type and status."""
     assert response.status_code == status, response.text
     assert response.headers["content-type"].startswith("application/problem+json")
@@ -174,7 +174,7 @@ def test_reading_metadata_never_loads_array_payloads(
     mdp = make_mdp(client, auth)
     statements: list[str] = []
 
-    def record(conn, cursor, statement, parameters, context, executemany) -> None:  # type: ignore[no-untyped-def]
+    def record(conn, cursor, statement, parameters, context, executemany) -> None:
         statements.append(statement)
 
     event.listen(app.state.engine, "before_cursor_execute", record)
