@@ -20,7 +20,7 @@ from typing import Any, Literal
 
 import numpy as np
 from pydantic import ValidationError
-from sqlalchemy import Engine, select
+from sqlalchemy import Engine, select, update
 from sqlalchemy.orm import Session
 from starlette.datastructures import FormData
 
@@ -253,6 +253,13 @@ def _task_for(
     return session.get_one(Task, created.id), True
 
 
+def lock_demonstrator(session: Session, demonstrator_id: str) -> None:
+    """Hold the demonstrator's row until the transaction ends, so concurrent uploads find or create its tasks
+    one at a time (two uploads with a new label join one task). A no-op UPDATE: a row lock on PostgreSQL, the
+    write lock taken before any read on SQLite."""
+    session.execute(update(Demonstrator).where(Demonstrator.id == demonstrator_id).values(id=Demonstrator.id))
+
+
 def add_recording(
     session: Session, demonstrator: Demonstrator, options: RecordingOptions, samples: Samples
 ) -> RecordingOut:
@@ -277,6 +284,7 @@ def add_recording(
         connection.begin(),
         Session(bind=connection, join_transaction_mode="rollback_only", expire_on_commit=False) as tx,
     ):
+        lock_demonstrator(tx, demonstrator.id)
         mdp_id = _mdp_id(tx, target, lab_id=lab_id)
         tasks = []
         for label, trajectories in cut.by_label.items():

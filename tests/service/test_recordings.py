@@ -8,6 +8,7 @@ import io
 import json
 import subprocess
 import sys
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,10 @@ from fastapi.testclient import TestClient
 
 from metairl_engine.motion import DiscretiseSettings, Recording, demonstrations
 from metairl_engine.patient import PatientSettings, simulate_patient
+from service.crud.tasks import create_task
 from service.inputs import load_trajectories
+from service.models.demonstrators import Demonstrator
+from service.recordings import lock_demonstrator
 from tests.service.helpers import created, make_demonstrator, make_mdp
 
 REPO = Path(__file__).resolve().parents[2]
@@ -117,6 +121,32 @@ def test_reupload_joins_the_existing_tasks(client: TestClient, auth: dict[str, s
     tasks = tasks_of(client, auth, dem["id"])
     assert len(tasks) == 3 and all(t["n_trajectories"] == 4 for t in tasks.values())
     assert len(client.get(f"/v1/demonstrators/{dem['id']}/recordings", headers=auth).json()["data"]) == 2
+
+
+def test_concurrent_uploads_with_a_new_label_join_one_task(
+    app: FastAPI, client: TestClient, auth: dict[str, str], rows: Rows
+) -> None:
+    """Upload B waits while another transaction holding the demonstrator creates "forward", then joins it."""
+    dem = make_demonstrator(client, auth)
+    mdp_id = velocity_grid(client, auth)
+    responses: list[Any] = []
+    with app.state.sessionmaker() as first:
+        lock_demonstrator(first, dem["id"])
+        upload = threading.Thread(
+            target=lambda: responses.append(post_json(client, auth, dem["id"], rows, mdp_id=mdp_id))
+        )
+        upload.start()
+        upload.join(timeout=1.0)
+        assert upload.is_alive(), "the second upload did not wait for the demonstrator's lock"
+        forward = create_task(  # commits, which releases the lock
+            first, first.get_one(Demonstrator, dem["id"]), name="forward", mdp_id=mdp_id, metadata=None
+        )
+    upload.join(timeout=30)
+    out = created(responses[0])
+    joined = {t["label"]: (t["task_id"], t["created"]) for t in out["tasks"]}
+    assert joined["forward"] == (forward.id, False)
+    listed = client.get(f"/v1/demonstrators/{dem['id']}/tasks", headers=auth).json()["data"]
+    assert [t["id"] for t in listed if t["name"] == "forward"] == [forward.id]
 
 
 def test_csv_and_json_store_the_same_demonstrations(
