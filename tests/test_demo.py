@@ -4,14 +4,9 @@ against the in-process API, and (marked ``worker``) the whole quick demo against
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import json
-import os
-import signal
-import socket
 import subprocess
 import sys
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -38,6 +33,7 @@ from service.demo_report import FIGURE_FILE, HEATMAP_FILES, pearson_figure, summ
 from service.models.labs import Lab
 from service.serve import LOCAL_LAB
 from service.settings import Settings
+from tests.served import free_port, metairl_serve
 
 REPO = Path(__file__).resolve().parents[1]
 TINY = dataclasses.replace(
@@ -220,55 +216,11 @@ def test_the_demo_never_imports_torch() -> None:
     assert out.stdout.strip() == "False"
 
 
-def free_port() -> int:
-    """A TCP port nothing listens on right now."""
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
-
-
 @pytest.fixture
 def served(tmp_path: Path) -> Iterator[tuple[str, str]]:
-    """A real `metairl serve` (API + worker) on a free port with its data in tmp_path: (URL, API key)."""
-    missing = [m for m in ("service.serve", "worker.main") if importlib.util.find_spec(m) is None]
-    if missing:
-        pytest.skip(f"the jobs side is not built yet: {', '.join(missing)} does not exist")
-    port = free_port()
-    env = {k: v for k, v in os.environ.items() if not k.startswith("METAIRL_")}
-    env["METAIRL_DATA_DIR"] = str(tmp_path / "var")
-    log = tmp_path / "serve.log"
-    with log.open("wb") as sink:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "service.cli", "serve", "--port", str(port)],
-            cwd=REPO,
-            env=env,
-            stdout=sink,
-            stderr=subprocess.STDOUT,
-        )
-    try:
-        url = f"http://127.0.0.1:{port}"
-        yield url, wait_for_key(url, log, proc)
-    finally:
-        proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-
-
-def wait_for_key(url: str, log: Path, proc: subprocess.Popen[bytes], *, timeout_s: float = 90.0) -> str:
-    """Wait for /healthz to answer and for `metairl serve` to print its API key (the line after the notice)."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        assert proc.poll() is None, f"metairl serve exited:\n{log.read_text()}"
-        lines = log.read_text(errors="replace").splitlines()
-        notice = [i for i, line in enumerate(lines) if line.startswith("API key for lab")]
-        if notice and len(lines) > notice[0] + 1:
-            assert httpx.get(f"{url}/healthz").status_code == 200
-            return lines[notice[0] + 1].strip()
-        time.sleep(0.2)
-    raise AssertionError(f"metairl serve did not start within {timeout_s} s:\n{log.read_text()}")
+    """A real `metairl serve` (API + worker) with its data in tmp_path: (URL, API key)."""
+    with metairl_serve(tmp_path) as running:
+        yield running.url, running.key
 
 
 @pytest.mark.worker

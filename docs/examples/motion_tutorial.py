@@ -9,7 +9,8 @@ Two steps, each a sub-command:
 ``ideal_reward.csv`` (one value per velocity-grid state) — replace them with your own force-plate exports.
 ``run`` creates the velocity grid MDP, a demonstrator per session, uploads each recording, submits a meta-IRL
 job per session, waits for it, and prints every direction's reward against the ideal reward (the paper's
-Table I), saving heatmaps next to the data. ``--size 30`` keeps everything small for a first try.
+Table I, on the states the direction's demonstrations visit and on all states) with the fit's time, saving a
+heatmap per direction and of the baseline next to the data. ``--size 30`` keeps everything small for a first try.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import json
 import os
 import sys
 import time
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -124,18 +126,41 @@ def run(api: httpx.Client, data: Path, *, size: int, config: dict[str, Any]) -> 
         if job["status"] != "succeeded":
             print(f"{name}: job {job['status']}: {job.get('error')}")
             continue
-        rewards = ok(api.get(f"/v1/jobs/{job_id}/rewards"))
-        print(f"\n{name}: Pearson correlation with the ideal reward")
-        for task in rewards["tasks"]:
-            print(f"  {labels[task['task_id']]:15s} {task['truth_pearson']:+.3f}")
-        baseline = rewards["baseline"]["reward_id"]
-        compared = ok(
-            api.post("/v1/comparisons", json={"a": {"reward_id": baseline}, "b": {"values": ideal}})
-        )
-        print(f"  {'origin':15s} {compared['pearson']:+.3f}  (the learned baseline)")
-        png = api.get(f"/v1/rewards/{baseline}", params={"format": "png"})
+        print_table_row(api, data, name=name, job=job, labels=labels, ideal=ideal)
+
+
+def pearson_with(api: httpx.Client, reward_id: str, values: list[float]) -> tuple[float, float]:
+    """Pearson of a reward with ``values`` on the states its demonstrations visit, and on all states."""
+
+    def compare(states: str) -> float:
+        body = {"a": {"reward_id": reward_id}, "b": {"values": values}, "states": states}
+        return float(ok(api.post("/v1/comparisons", json=body))["pearson"])
+
+    return compare("visited"), compare("all")
+
+
+def print_table_row(
+    api: httpx.Client,
+    data: Path,
+    *,
+    name: str,
+    job: dict[str, Any],
+    labels: dict[str, str],
+    ideal: list[float],
+) -> None:
+    """Print a session's Table I row (visited / all states) and its fit time; save a heatmap per reward."""
+    started, finished = (datetime.fromisoformat(job[k]) for k in ("started_at", "finished_at"))
+    steps = job["progress"]["step"]
+    print(f"\n{name}: fit in {(finished - started).total_seconds():.0f} s ({steps} steps)")
+    print(f"  Pearson with the ideal reward on {'visited states':>14s} / all states")
+    rewards = ok(api.get(f"/v1/jobs/{job['id']}/rewards"))
+    named = [(labels[t["task_id"]], t["reward_id"]) for t in rewards["tasks"]]
+    for label, reward_id in [*named, ("origin", rewards["baseline"]["reward_id"])]:
+        visited, everywhere = pearson_with(api, reward_id, ideal)
+        print(f"  {label:15s} {visited:+.3f} / {everywhere:+.3f}")
+        png = api.get(f"/v1/rewards/{reward_id}", params={"format": "png"})
         if png.is_success:
-            (data / f"{name}-baseline.png").write_bytes(png.content)
+            (data / f"{name}-{label.replace(' ', '-')}.png").write_bytes(png.content)
 
 
 def main() -> None:
