@@ -19,7 +19,7 @@ from service.blobs import put_array
 from service.ids import new_id
 from service.jobstatus import JobStatus
 from service.models.base import utcnow
-from service.models.jobs import Job, JobEvent, Reward
+from service.models.jobs import PROGRESS_FIELDS, Job, JobEvent, Reward
 from service.queue import EnqueueFailed, JobQueue
 
 
@@ -58,14 +58,21 @@ def transition(
 
 
 def claim(session: Session, job_id: str) -> int | None:
-    """Start the next attempt of a queued job: running, attempts + 1, fresh heartbeat; None if not queued."""
+    """Start the next attempt of a queued job: running, attempts + 1, fresh heartbeat, no progress yet (an
+    earlier attempt's last step must not show as this one's); None if not queued."""
     now = utcnow()
     return transition(
         session,
         job_id,
         JobStatus.QUEUED,
         JobStatus.RUNNING,
-        values={"attempts": Job.attempts + 1, "started_at": now, "heartbeat_at": now, "error": None},
+        values={
+            "attempts": Job.attempts + 1,
+            "started_at": now,
+            "heartbeat_at": now,
+            "error": None,
+            **dict.fromkeys(PROGRESS_FIELDS),
+        },
         message="a worker started the job",
     )
 

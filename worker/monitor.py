@@ -19,12 +19,10 @@ from metairl_engine.results import Progress
 from service.jobstatus import JobStatus
 from service.jobstore import owned_by
 from service.models.base import utcnow
-from service.models.jobs import Job, JobEvent
+from service.models.jobs import PROGRESS_FIELDS, Job, JobEvent
 from service.settings import Settings
 
 log = logging.getLogger(__name__)
-
-PROGRESS_FIELDS = ("step", "max_steps", "loss", "irl_loss", "sharing_loss", "heldout_nll", "elapsed_s")
 
 
 def progress_values(p: Progress | None) -> dict[str, object]:

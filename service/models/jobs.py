@@ -42,6 +42,10 @@ class ProgressColumns:
     elapsed_s: Mapped[float | None] = mapped_column(Float)
 
 
+PROGRESS_FIELDS: tuple[str, ...] = tuple(ProgressColumns.__annotations__)
+"""The progress column names, in order (the worker writes them together; a new attempt clears them)."""
+
+
 class Job(ProgressColumns, CreatedAtMixin, Base):
     """One fit of a demonstrator's tasks: inputs, config, lifecycle and latest progress."""
 

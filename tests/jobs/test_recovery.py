@@ -98,6 +98,23 @@ def test_stale_running_job_is_requeued_once_even_with_concurrent_reapers(
         assert claim(session, job_id) == 2
 
 
+def test_a_new_attempt_shows_no_progress_until_it_reports_its_own(
+    app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
+) -> None:
+    job_id = running_job(app, client, auth)
+    with app.state.sessionmaker() as session:  # attempt 1 had reached step 40 when its worker died
+        reached = {"step": 40, "max_steps": 100, "loss": 1.5, "irl_loss": 1.4, "sharing_loss": 0.1}
+        session.execute(update(Job).where(Job.id == job_id).values(heldout_nll=1.6, elapsed_s=3.0, **reached))
+        session.commit()
+    assert client.get(f"/v1/jobs/{job_id}", headers=auth).json()["progress"]["step"] == 40
+    list(reap(app.state.sessionmaker, settings, CeleryJobQueue(settings)))
+    with app.state.sessionmaker() as session:
+        assert claim(session, job_id) == 2
+        session.commit()
+    job = client.get(f"/v1/jobs/{job_id}", headers=auth).json()
+    assert (job["status"], job["attempts"], job["progress"]) == ("running", 2, None)
+
+
 def test_job_with_a_fresh_heartbeat_is_left_alone(
     app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
 ) -> None:

@@ -11,7 +11,6 @@ import pytest
 
 from tests.served import metairl_serve
 
-
 pytestmark = [pytest.mark.worker, pytest.mark.slow]
 
 
