@@ -41,8 +41,13 @@ FENCE = re.compile(r"^```(?P<info>[^\n`]*)\n(?P<body>.*?)^```[ \t]*$", re.M | re
 PENDING_ROUTES: set[tuple[str, str]] = set()
 """API.md routes the docs describe that are still being built (rewards.py): their examples are skipped, not
 failed, while the app lacks them. Remove entries once they exist."""
-PENDING_FILES = {"docs/tutorial-motion.md", "benchmarks/RESULTS.md"}
-"""Link targets other engineers are still writing: a missing one skips its test instead of failing it."""
+PAGES = (
+    *DOCUMENTED,
+    *sorted({f"docs/{page.name}" for page in (REPO / "docs").glob("*.md")} - set(DOCUMENTED)),
+    "benchmarks/RESULTS.md",
+    "benchmarks/MOTION.md",
+)
+"""Every documentation page: their relative links must resolve and they must name no machine paths."""
 
 
 PENDING_FORMATS: set[str] = set()
@@ -361,21 +366,16 @@ def test_every_metairl_variable_named_in_the_docs_exists(path: str) -> None:
 LINK = re.compile(r"\]\((?!https?://|#|mailto:)([^)\s#]+)(?:#[^)]*)?\)")
 
 
-@pytest.mark.parametrize("path", DOCUMENTED)
+@pytest.mark.parametrize("path", PAGES)
 def test_relative_links_point_at_files(path: str) -> None:
     base = (REPO / path).parent
     text = (REPO / path).read_text(encoding="utf-8")
     broken = [target for target in LINK.findall(text) if not (base / target).exists()]
-    pending = [t for t in broken if (base / t).resolve().relative_to(REPO).as_posix() in PENDING_FILES]
-    assert not set(broken) - set(pending), (
-        f"{path} links to missing files: {sorted(set(broken) - set(pending))}"
-    )
-    if pending:
-        pytest.skip(f"{path} links to files still being written (PENDING_FILES): {pending}")
+    assert not broken, f"{path} links to missing files: {sorted(broken)}"
 
 
 def test_docs_hold_no_absolute_machine_paths() -> None:
-    for path in [*DOCUMENTED, *(str(p.relative_to(REPO)) for p in (REPO / "docs/examples").glob("*.py"))]:
+    for path in [*PAGES, *(str(p.relative_to(REPO)) for p in (REPO / "docs/examples").glob("*.py"))]:
         text = (REPO / path).read_text(encoding="utf-8")
         found = re.findall(r"(?<![\w.])/(?:work|tmp|root|home)/\S+", text)
         assert not found, f"{path} names absolute machine paths {found}"
