@@ -4,11 +4,11 @@ For each session (unstimulated, stimulated) of `metairl_engine.patient.simulate_
 cut into per-direction demonstrations (`metairl_engine.motion.demonstrations`) and one meta-IRL fit with Huber
 sharing and the default config learns a reward per instructed direction plus the baseline on the velocity
 grid (100×100 = 80,000 states by default). The table gives the Pearson correlation of every recovered task
-reward with the patient's ideal reward, and of the baseline with it (the paper's "origin" column), with the
-wall time of each session's fit. Usage::
+reward with the patient's ideal reward, and of the baseline with it (the paper's "origin" column), on the
+states the demonstrations visit and on all states, with the wall time of each session's fit. Usage::
 
     .venv/bin/python benchmarks/motion.py [--size 100] [--seed 0] [--out benchmarks/MOTION.md]
-        [--images benchmarks/motion]
+        [--images benchmarks/motion] [--outward-only]
 
 ``--size 30`` (7,200 states) runs in a few minutes for a quick look; only 100 reproduces the paper's MDP.
 """
@@ -33,7 +33,7 @@ import torch  # noqa: E402
 
 from metairl_engine import FitConfig, Layout, Trajectory  # noqa: E402
 from metairl_engine.fit import FitResult, Progress, TaskData, fit  # noqa: E402
-from metairl_engine.grids import DIRECTION_NAMES, grid_mdp  # noqa: E402
+from metairl_engine.grids import DIRECTION_NAMES, grid_mdp, velocity_coords  # noqa: E402
 from metairl_engine.metrics import pearson  # noqa: E402
 from metairl_engine.motion import DiscretiseSettings, demonstrations  # noqa: E402
 from metairl_engine.patient import PatientSettings, SyntheticPatient, simulate_patient  # noqa: E402
@@ -57,19 +57,37 @@ class SessionResult:
     wall_s: float
     cpu_s: float
 
+    def visited(self, *directions: str) -> np.ndarray:
+        """The velocity-grid states the demonstrations of these directions (default: all) pass through, as
+        `POST /v1/comparisons` with ``"states": "visited"`` takes them (sorted, unique)."""
+        return np.unique(
+            np.concatenate([t.states for d in directions or self.directions for t in self.trajectories[d]])
+        )
 
-def fit_session(patient: SyntheticPatient, name: str) -> SessionResult:
+
+def outward(trajectory: Trajectory, *, width: int, height: int) -> Trajectory:
+    """The trajectory up to its cell farthest from the plate centre: the movement without its return."""
+    x, y, _ = velocity_coords(trajectory.states, width=width, height=height)
+    far = max(int(np.argmax(np.hypot(x - width // 2, y - height // 2))), 1)
+    return Trajectory.of(trajectory.states[: far + 1], trajectory.actions[:far])
+
+
+def fit_session(patient: SyntheticPatient, name: str, *, outward_only: bool) -> SessionResult:
     """Cut one session into per-direction demonstrations and fit all directions together."""
     w, h = patient.width, patient.height
     demos = demonstrations(patient.sessions[name], discretise_settings=DiscretiseSettings(width=w, height=h))
     mdp = grid_mdp(width=w, height=h, velocity=True, gamma=GAMMA)
     directions = [d for d in DIRECTION_NAMES if d in demos.by_label]
-    tasks = [TaskData(mdp=mdp, trajectories=demos.by_label[d], name=d) for d in directions]
+    by_label = {
+        d: [outward(t, width=w, height=h) for t in demos.by_label[d]] if outward_only else demos.by_label[d]
+        for d in directions
+    }
+    tasks = [TaskData(mdp=mdp, trajectories=by_label[d], name=d) for d in directions]
     started, cpu_started = time.perf_counter(), time.process_time()
     result = fit(tasks, CONFIG, progress=partial(report_progress, name))
     wall, cpu = time.perf_counter() - started, time.process_time() - cpu_started
     return SessionResult(
-        name=name, directions=directions, trajectories=demos.by_label, result=result, wall_s=wall, cpu_s=cpu
+        name=name, directions=directions, trajectories=by_label, result=result, wall_s=wall, cpu_s=cpu
     )
 
 
@@ -84,19 +102,23 @@ def report_progress(session: str, progress: Progress) -> None:
 
 
 def table(patient: SyntheticPatient, sessions: list[SessionResult], *, truth: str) -> list[str]:
-    """Markdown rows: per session, Pearson of each direction's reward with ``truth`` ("ideal" or "task")."""
+    """Markdown rows: per session, Pearson of each direction's reward with ``truth`` ("ideal" or "task"),
+    as "on the states its demonstrations visit / on all states" (the baseline: all the session's)."""
     header = ["session", *DIRECTION_NAMES, "origin (baseline)"]
     lines = ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)]
     for s in sessions:
+
+        def both(learned: np.ndarray, target: np.ndarray, visited: np.ndarray) -> str:
+            return f"{pearson(learned[visited], target[visited]):.2f} / {pearson(learned, target):.2f}"
+
         cells = [s.name]
         for d in DIRECTION_NAMES:
             if d not in s.directions:
                 cells.append("–")
                 continue
-            learned = s.result.rewards[s.directions.index(d)]
             target = patient.ideal_reward if truth == "ideal" else patient.task_rewards[d]
-            cells.append(f"{pearson(learned, target):.3f}")
-        cells.append(f"{pearson(s.result.baseline, patient.ideal_reward):.3f}")
+            cells.append(both(s.result.rewards[s.directions.index(d)], target, s.visited(d)))
+        cells.append(both(s.result.baseline, patient.ideal_reward, s.visited()))
         lines.append("| " + " | ".join(cells) + " |")
     return lines
 
@@ -123,7 +145,9 @@ def save_heatmaps(patient: SyntheticPatient, sessions: list[SessionResult], fold
     return written
 
 
-def report(patient: SyntheticPatient, sessions: list[SessionResult], *, command: str) -> str:
+def report(
+    patient: SyntheticPatient, sessions: list[SessionResult], *, command: str, outward_only: bool
+) -> str:
     """The MOTION.md text: set-up, both tables and timings."""
     n_states = 8 * patient.width * patient.height
     timing = [
@@ -143,7 +167,12 @@ def report(patient: SyntheticPatient, sessions: list[SessionResult], *, command:
             f"- Patient: `simulate_patient(PatientSettings(width={patient.width}, height={patient.height}))` — "
             "8 instructions × 3 repetitions per session, 100 Hz COP with sway and sensor noise.",
             "- Pipeline: `metairl_engine.motion.demonstrations` (discretise, fill skipped cells, drop pauses, "
-            "segment at peaks of the distance from the plate centre, label by instruction).",
+            "segment at peaks of the distance from the plate centre, label by instruction)"
+            + (
+                "; then each movement cut at its farthest cell and only the outward half kept (`--outward-only`)."
+                if outward_only
+                else ": out-and-back movements, as the service stores them."
+            ),
             f'- Fit: `metairl_engine.fit.fit` with `FitConfig(sharing="huber")` (all other settings default: '
             f"hidden {list(CONFIG.hidden)}, lr {CONFIG.learning_rate}, max_steps {CONFIG.max_steps}, hold-out "
             f"{CONFIG.holdout_fraction}, patience {CONFIG.patience}), one fit per session over all its directions.",
@@ -174,8 +203,9 @@ def report(patient: SyntheticPatient, sessions: list[SessionResult], *, command:
             f"Load average while measuring (1, 5, 15 min): {', '.join(f'{v:.1f}' for v in os.getloadavg())} on "
             f"{os.cpu_count()} cores: wall times include waiting for other processes; CPU time does not.",
             "",
-            "Heatmaps (one panel per velocity direction, that direction's demonstrations drawn) are written to "
-            "`benchmarks/motion/`.",
+            "Heatmaps (one panel per velocity direction, that direction's demonstrations drawn) of every direction "
+            "are written to `benchmarks/motion/`; the ideal reward, both baselines and both sessions' "
+            "`forward` are committed.",
             "",
         ]
     )
@@ -188,15 +218,24 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the synthetic patient")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "MOTION.md")
     parser.add_argument("--images", type=Path, default=ROOT / "benchmarks" / "motion")
+    parser.add_argument(
+        "--outward-only",
+        action="store_true",
+        help="experiment: fit each movement's outward half only (the service keeps out-and-back segments)",
+    )
     args = parser.parse_args()
     patient = simulate_patient(PatientSettings(width=args.size, height=args.size, seed=args.seed))
     sessions = []
     for name in patient.sessions:
-        result = fit_session(patient, name)
+        result = fit_session(patient, name, outward_only=args.outward_only)
         print(f"{name}: {len(result.directions)} directions, {result.wall_s:.1f} s", flush=True)
         sessions.append(result)
-    command = "python benchmarks/motion.py" + (f" --size {args.size}" if args.size != 100 else "")
-    text = report(patient, sessions, command=command)
+    command = (
+        "python benchmarks/motion.py"
+        + (f" --size {args.size}" if args.size != 100 else "")
+        + (" --outward-only" if args.outward_only else "")
+    )
+    text = report(patient, sessions, command=command, outward_only=args.outward_only)
     args.out.write_text(text)
     print(text)
     for path in save_heatmaps(patient, sessions, args.images):
