@@ -39,11 +39,10 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from kombu import Connection  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 from metairl_engine import Trajectory  # noqa: E402
-from service.broker import broker_url, job_queue  # noqa: E402
+from service.broker import broker_url, delete_queue  # noqa: E402
 from service.demo_client import TERMINAL_STATUSES, ApiClient, ServiceError  # noqa: E402
 from service.serve import child_environment, shut_down, spawn, wait_healthy  # noqa: E402
 from service.settings import Settings  # noqa: E402
@@ -400,16 +399,6 @@ def draw(timeline: Timeline, crash: Crash, job: dict[str, Any], settings: Settin
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=100)
-
-
-def delete_queue(settings: Settings) -> None:
-    """Remove this run's queue and exchange from a shared broker (the embedded one goes with the data folder)."""
-    if settings.broker_url:
-        with Connection(settings.broker_url) as broker:
-            queue = job_queue(settings)(broker.default_channel)
-            queue.declare()  # Redis forgets only bindings this channel declared
-            queue.delete()
-            queue.exchange.delete()
 
 
 def run(out: Path, broker: str | None, max_steps: int, timeout_s: float) -> None:

@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from kombu import Exchange, Queue
+from kombu import Connection, Exchange, Queue
 
 from service.settings import Settings
 
@@ -72,6 +72,18 @@ def job_queue(settings: Settings) -> Queue:
     arguments = {"x-consumer-timeout": unacked_timeout_s(settings) * 1000} if is_amqp(settings) else None
     name = settings.queue_name
     return Queue(name, Exchange(name, type="direct"), routing_key=name, queue_arguments=arguments)
+
+
+def delete_queue(settings: Settings) -> None:
+    """Remove the job queue and its exchange from a configured broker (tests and benchmarks with their own
+    queue on a shared server; the embedded broker goes with its data folder). On Redis the queue is declared
+    first: kombu deletes only the bindings its channel knows of, so a fresh channel would leave them behind."""
+    if settings.broker_url:
+        with Connection(settings.broker_url) as broker:
+            queue = job_queue(settings)(broker.default_channel)
+            queue.declare()
+            queue.delete()
+            queue.exchange.delete()
 
 
 def celery_config(settings: Settings) -> dict[str, Any]:

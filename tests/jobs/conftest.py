@@ -23,10 +23,10 @@ from pathlib import Path
 import psycopg
 import pytest
 from fastapi.testclient import TestClient
-from kombu import Connection
 from psycopg import sql
 
 from service.app import create_app
+from service.broker import delete_queue
 from service.keys import create_key
 from service.settings import Settings
 from tests.conftest import POSTGRES_ADMIN
@@ -154,9 +154,7 @@ def stack(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFacto
         app.state.engine.dispose()
         if database:
             _drop_postgres_database(database)
-        if settings.broker_url:  # the test's queue is durable on a shared broker: remove it
-            with Connection(settings.broker_url) as broker:
-                broker.default_channel.queue_delete(settings.queue_name)
+        delete_queue(settings)  # the test's queue is durable on a shared broker
 
 
 @pytest.fixture
