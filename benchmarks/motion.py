@@ -101,24 +101,25 @@ def report_progress(session: str, progress: Progress) -> None:
         )
 
 
+def visited_and_all(learned: np.ndarray, target: np.ndarray, visited: np.ndarray) -> str:
+    """``"r_visited / r_all"``: Pearson of ``learned`` with ``target`` on the ``visited`` states, and on all."""
+    return f"{pearson(learned[visited], target[visited]):.2f} / {pearson(learned, target):.2f}"
+
+
 def table(patient: SyntheticPatient, sessions: list[SessionResult], *, truth: str) -> list[str]:
     """Markdown rows: per session, Pearson of each direction's reward with ``truth`` ("ideal" or "task"),
     as "on the states its demonstrations visit / on all states" (the baseline: all the session's)."""
     header = ["session", *DIRECTION_NAMES, "origin (baseline)"]
     lines = ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)]
     for s in sessions:
-
-        def both(learned: np.ndarray, target: np.ndarray, visited: np.ndarray) -> str:
-            return f"{pearson(learned[visited], target[visited]):.2f} / {pearson(learned, target):.2f}"
-
         cells = [s.name]
         for d in DIRECTION_NAMES:
             if d not in s.directions:
                 cells.append("–")
                 continue
             target = patient.ideal_reward if truth == "ideal" else patient.task_rewards[d]
-            cells.append(both(s.result.rewards[s.directions.index(d)], target, s.visited(d)))
-        cells.append(both(s.result.baseline, patient.ideal_reward, s.visited()))
+            cells.append(visited_and_all(s.result.rewards[s.directions.index(d)], target, s.visited(d)))
+        cells.append(visited_and_all(s.result.baseline, patient.ideal_reward, s.visited()))
         lines.append("| " + " | ".join(cells) + " |")
     return lines
 
