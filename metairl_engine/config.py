@@ -54,7 +54,7 @@ class FitConfig:
     """Upper bound on optimisation steps (the held-out rule usually stops earlier without sharing)."""
 
     tolerance: float = 1e-6
-    """Stop when the relative change of the training loss over a step falls below this."""
+    """Stop when the relative change of the training loss per step stays below this for 10 steps in a row."""
 
     holdout_fraction: float = 0.2
     """Fraction of each task's demonstrated steps held out to choose the stopping step by held-out

@@ -44,6 +44,11 @@ EVAL_CHUNK = 16_384
 TRAIN_CHUNK = 1_024
 """Above this many states a training step runs the networks chunk by chunk (see `gradient_step`)."""
 
+CONVERGED_STEPS = 10
+"""The loss has converged when its change stayed within ``tolerance`` this many steps in a row: Adam's loss
+oscillates, and one step's change can vanish by chance where the loss turns (a 80,000-state fit stopped at
+step 67 of ~700 so)."""
+
 
 def fit(
     tasks: Sequence[TaskData],
@@ -290,6 +295,7 @@ def _fit_meta_irl(
     stopper = HeldOutStopper(patience=config.patience)
     kept_params = [p.detach().clone() for p in params]
     previous_loss: float | None = None
+    flat_steps = 0  # consecutive steps whose loss change was within the tolerance
     for step in range(1, config.max_steps + 1):
         if should_stop is not None and should_stop():
             raise Cancelled(f"fit cancelled at step {step}")
@@ -322,9 +328,11 @@ def _fit_meta_irl(
             progress(record)
         if held_nll is not None and stopper.should_stop(step):
             break
-        if previous_loss is not None and abs(record.loss - previous_loss) <= config.tolerance * max(
+        flat = previous_loss is not None and abs(record.loss - previous_loss) <= config.tolerance * max(
             abs(previous_loss), 1e-12
-        ):
+        )
+        flat_steps = flat_steps + 1 if flat else 0
+        if flat_steps >= CONVERGED_STEPS:
             break
         previous_loss = record.loss
 

@@ -9,7 +9,7 @@ import torch
 from metairl_engine import MDP, FitConfig, InvalidInput, Trajectory
 from metairl_engine.backups import QRows
 from metairl_engine.errors import Cancelled
-from metairl_engine.fit import HeldOutStopper, _Problem, fit, gradient_step, objective
+from metairl_engine.fit import CONVERGED_STEPS, HeldOutStopper, _Problem, fit, gradient_step, objective
 from metairl_engine.metrics import pearson
 from metairl_engine.networks import StackedMLP
 from metairl_engine.results import Progress
@@ -163,6 +163,13 @@ def test_stopper_keeps_steps_within_one_standard_error_of_the_best_and_then_stop
     assert not stopper.should_stop(3)
     assert not stopper.update(4, torch.tensor([4.0, 4.0]))
     assert stopper.should_stop(4) and stopper.kept_step == 2
+
+
+def test_loss_tolerance_stops_only_after_several_flat_steps_in_a_row() -> None:
+    tasks, _ = terrain_tasks(seed=0, n_tasks=1, n_demos=1)
+    always_flat = fit(tasks, FitConfig(max_steps=100, patience=0, tolerance=1.0))
+    assert len(always_flat.history) == 1 + CONVERGED_STEPS  # step 1 has no previous loss to compare with
+    assert len(fit(tasks, FitConfig(max_steps=30, patience=0, tolerance=0.0)).history) == 30
 
 
 def test_should_stop_cancels_the_fit() -> None:
