@@ -8,7 +8,7 @@ reward with the patient's ideal reward, and of the baseline with it (the paper's
 states the demonstrations visit and on all states, with the wall time of each session's fit. Usage::
 
     .venv/bin/python benchmarks/motion.py [--size 100] [--seed 0] [--out benchmarks/MOTION.md]
-        [--images benchmarks/motion] [--outward-only]
+        [--images benchmarks/motion] [--outward-only] [--direction-preference R R R R R R R R]
 
 ``--size 30`` (7,200 states) runs in a few minutes for a quick look; only 100 reproduces the paper's MDP.
 """
@@ -36,7 +36,12 @@ from metairl_engine.fit import FitResult, Progress, TaskData, fit  # noqa: E402
 from metairl_engine.grids import DIRECTION_NAMES, grid_mdp, velocity_coords  # noqa: E402
 from metairl_engine.metrics import pearson  # noqa: E402
 from metairl_engine.motion import DiscretiseSettings, demonstrations  # noqa: E402
-from metairl_engine.patient import PatientSettings, SyntheticPatient, simulate_patient  # noqa: E402
+from metairl_engine.patient import (  # noqa: E402
+    DIRECTION_PREFERENCE,
+    PatientSettings,
+    SyntheticPatient,
+    simulate_patient,
+)
 from service.render import heatmap_png  # noqa: E402
 
 GAMMA = 0.9
@@ -124,6 +129,22 @@ def table(patient: SyntheticPatient, sessions: list[SessionResult], *, truth: st
     return lines
 
 
+def preference_table(patient: SyntheticPatient, sessions: list[SessionResult]) -> list[str]:
+    """Markdown rows: per session, Pearson over the 8 velocity channels between each learned reward's channel
+    means (all states) and the patient's preference per direction of motion."""
+    header = ["session", *DIRECTION_NAMES, "origin (baseline)"]
+    lines = ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)]
+    truth = np.asarray(patient.direction_preference)
+    for s in sessions:
+        rewards = dict(zip(s.directions, s.result.rewards, strict=True))
+        learned = [rewards.get(d) for d in DIRECTION_NAMES] + [s.result.baseline]
+        cells = [
+            "–" if r is None else f"{pearson(r.reshape(8, -1).mean(axis=1), truth):.2f}" for r in learned
+        ]
+        lines.append("| " + " | ".join([s.name, *cells]) + " |")
+    return lines
+
+
 def save_heatmaps(patient: SyntheticPatient, sessions: list[SessionResult], folder: Path) -> list[Path]:
     """One PNG per session and direction (8 velocity panels, demonstrations drawn), baselines and the ideal."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -166,7 +187,8 @@ def report(
             f"- MDP: velocity grid {patient.width}×{patient.height} = {n_states:,} states, 8 actions, "
             f"gamma {GAMMA}; features: normalised (x, y) + direction one-hot.",
             f"- Patient: `simulate_patient(PatientSettings(width={patient.width}, height={patient.height}))` — "
-            "8 instructions × 3 repetitions per session, 100 Hz COP with sway and sensor noise.",
+            "8 instructions × 3 repetitions per session, 100 Hz COP with sway and sensor noise; its ideal reward "
+            "is a map of places plus a preference per direction of motion.",
             "- Pipeline: `metairl_engine.motion.demonstrations` (discretise, fill skipped cells, drop pauses, "
             "segment at peaks of the distance from the plate centre, label by instruction)"
             + (
@@ -193,6 +215,14 @@ def report(
             "direction), which the paper's real patients do not.",
             "",
             *table(patient, sessions, truth="task"),
+            "",
+            "## Pearson correlation of each learned reward's channel means with the direction preference",
+            "",
+            "The ideal reward includes a preference per direction of motion (`PatientSettings.direction_preference`:"
+            f" {', '.join(f'{v:+.1f}' for v in patient.direction_preference)} by direction index). Here each learned "
+            "reward is averaged over every velocity channel (8 values) and correlated with it.",
+            "",
+            *preference_table(patient, sessions),
             "",
             "## Wall time",
             "",
@@ -224,8 +254,19 @@ def main() -> None:
         action="store_true",
         help="experiment: fit each movement's outward half only (the service keeps out-and-back segments)",
     )
+    parser.add_argument(
+        "--direction-preference",
+        type=float,
+        nargs=8,
+        default=DIRECTION_PREFERENCE,
+        metavar="R",
+        help="the patient's reward per direction of motion, by direction index (all 0: a map of places only)",
+    )
     args = parser.parse_args()
-    patient = simulate_patient(PatientSettings(width=args.size, height=args.size, seed=args.seed))
+    preference = tuple(args.direction_preference)
+    patient = simulate_patient(
+        PatientSettings(width=args.size, height=args.size, seed=args.seed, direction_preference=preference)
+    )
     sessions = []
     for name in patient.sessions:
         result = fit_session(patient, name, outward_only=args.outward_only)
@@ -235,6 +276,11 @@ def main() -> None:
         "python benchmarks/motion.py"
         + (f" --size {args.size}" if args.size != 100 else "")
         + (" --outward-only" if args.outward_only else "")
+        + (
+            ""
+            if preference == DIRECTION_PREFERENCE
+            else f" --direction-preference {' '.join(map(str, preference))}"
+        )
     )
     text = report(patient, sessions, command=command, outward_only=args.outward_only)
     args.out.write_text(text)

@@ -1,10 +1,12 @@
 """A seeded synthetic patient on a force plate, for tests and the demo (paper §IV-B, Table I).
 
-The patient has a known inherent ("ideal") preference map over the plate. For each instructed direction a
-Boltzmann-rational agent on the velocity grid (actions ~ softmax(b·Q), Q planned with a max backup for the
-task reward = ideal baseline + a goal bump along that direction) walks out, then back to the centre under a
-return reward; the walk is replayed as a continuous COP with slow sway and sensor noise. The unstimulated
-session has weaker control (smaller b) and more sway than the stimulated one.
+The patient has a known inherent ("ideal") preference over velocity-grid states: a map of places on the plate
+plus a preference per direction of motion (backward-left moves are costly), which is what a velocity-grid reward
+can express. For each instructed direction a Boltzmann-rational agent on the velocity grid (actions ~
+softmax(b·Q), Q planned with a max backup for the task reward = ideal baseline + a goal bump along that
+direction) walks out, then back to the centre under a return reward; the walk is replayed as a continuous COP
+with slow sway and sensor noise. The unstimulated session has weaker control (smaller b) and more sway than the
+stimulated one.
 """
 
 from __future__ import annotations
@@ -38,6 +40,11 @@ STIMULATED = SessionSettings(name="stimulated", confidence=10.0, sway=0.4, noise
 """Sharper control under transcutaneous stimulation."""
 
 
+DIRECTION_PREFERENCE = (0.0, 0.0, 0.3, 0.0, -0.3, -1.0, -0.3, 0.0)
+"""The default inherent preference per direction of motion (by `DIRECTIONS` index): forward is easy, left,
+backward and above all backward-left are costly."""
+
+
 PLATE = Bounds(x_min=-0.2, x_max=0.2, y_min=-0.2, y_max=0.2)
 """A 40 cm × 40 cm force plate in metres, centred on the origin."""
 
@@ -56,6 +63,8 @@ class PatientSettings:
     """How far the instructed goal lies from the centre, as a fraction of the plate's half-size."""
     goal_weight: float = 2.0
     """Height of the goal bump added to the baseline in each task reward."""
+    direction_preference: tuple[float, ...] = DIRECTION_PREFERENCE
+    """Reward added to every state entered moving in each direction (8 values by `DIRECTIONS` index)."""
     gamma: float = 0.95
     speed: float = 20.0
     """Cells crossed per second."""
@@ -74,6 +83,8 @@ class PatientSettings:
         ]
         if not 0 < self.reach < 1:
             out.append(Issue(f"{pointer}/reach", "must be in (0, 1)"))
+        if len(self.direction_preference) != len(DIRECTION_NAMES):
+            out.append(Issue(f"{pointer}/direction_preference", f"must hold {len(DIRECTION_NAMES)} numbers"))
         if not set(self.directions) <= set(DIRECTION_NAMES) or not self.directions:
             out.append(Issue(f"{pointer}/directions", f"must be some of {', '.join(DIRECTION_NAMES)}"))
         return out + self.bounds.issues(f"{pointer}/bounds")
@@ -83,7 +94,8 @@ class PatientSettings:
 class SyntheticPatient:
     """Simulation output. Rewards are (8·height·width,) float64 over velocity-grid states.
 
-    ``ideal_reward`` is the inherent baseline; ``task_rewards`` {instruction: reward} drove the outward
+    ``ideal_reward`` is the inherent baseline, whose part per direction of motion is ``direction_preference``
+    (8 values by `DIRECTIONS` index); ``task_rewards`` {instruction: reward} drove the outward
     movements; ``sessions`` {name: Recording} hold the COP samples with their instruction column.
     """
 
@@ -91,6 +103,7 @@ class SyntheticPatient:
     height: int
     bounds: Bounds
     ideal_reward: np.ndarray
+    direction_preference: tuple[float, ...]
     task_rewards: dict[str, np.ndarray]
     sessions: dict[str, Recording]
 
@@ -112,9 +125,12 @@ def _cell_ideal(width: int, height: int) -> np.ndarray:
     return _bump(u, v, (0.0, 0.0), 0.5) - 0.8 * _bump(u, v, (-0.5, -0.4), 0.3)
 
 
-def ideal_reward(*, width: int, height: int) -> np.ndarray:
-    """The patient's inherent preference over velocity-grid states (8·H·W,); the same in every direction."""
-    return np.tile(_cell_ideal(width, height), 8)
+def ideal_reward(
+    *, width: int, height: int, direction_preference: tuple[float, ...] = DIRECTION_PREFERENCE
+) -> np.ndarray:
+    """The patient's inherent preference over velocity-grid states (8·H·W,): the cell map of `_cell_ideal` in
+    every direction channel plus that channel's ``direction_preference``."""
+    return np.tile(_cell_ideal(width, height), 8) + np.repeat(direction_preference, width * height)
 
 
 def _goal(direction: str, reach: float) -> tuple[float, float]:
@@ -125,27 +141,27 @@ def _goal(direction: str, reach: float) -> tuple[float, float]:
 
 
 def simulate_patient(settings: PatientSettings = PatientSettings()) -> SyntheticPatient:
-    """Plan every instruction's task, then record each session's COP (deterministic given ``seed``).
+    """Plan every instruction's task on the velocity grid, then record each session's COP (deterministic
+    given ``seed``).
 
-    Rewards depend on the cell only and a velocity-grid move does not depend on the current velocity, so
-    Q is the same in every velocity channel: it is planned on the 8-move cell grid (same action order as
-    `DIRECTIONS`), 8× cheaper than on the velocity grid and exactly equal.
+    A velocity-grid move does not depend on the current velocity, so Q(s, a) = r(s') + γV(s') is the same in
+    every velocity channel of a cell: the walk uses channel 0's rows as the cell's Q, with the 8-move cell
+    grid (same action order as `DIRECTIONS`) for the next cell.
     """
     check(settings.issues())
     w, h = settings.width, settings.height
-    cells = grid_mdp(width=w, height=h, moves=8, gamma=settings.gamma)
-    transitions = transition_matrix(cells)
+    n_cells = w * h
+    transitions = transition_matrix(grid_mdp(width=w, height=h, velocity=True, gamma=settings.gamma))
     u, v = _plate_coords(w, h)
-    base = _cell_ideal(w, h)
-    task = {
-        d: base + settings.goal_weight * _bump(u, v, _goal(d, settings.reach), 0.2)
-        for d in settings.directions
-    }
-    task[NO_INSTRUCTION] = base + settings.goal_weight * _bump(u, v, (0.0, 0.0), 0.2)  # back to the centre
+    base = ideal_reward(width=w, height=h, direction_preference=settings.direction_preference)
+    goals = {d: _goal(d, settings.reach) for d in settings.directions}
+    goals[NO_INSTRUCTION] = (0.0, 0.0)  # back to the centre
+    task = {name: base + settings.goal_weight * np.tile(_bump(u, v, g, 0.2), 8) for name, g in goals.items()}
     q = {
-        name: value_iteration(transitions, r, gamma=settings.gamma, backup="max", tolerance=1e-4).q
+        name: value_iteration(transitions, r, gamma=settings.gamma, backup="max", tolerance=1e-4).q[:n_cells]
         for name, r in task.items()
     }
+    cells = grid_mdp(width=w, height=h, moves=8, gamma=settings.gamma)
     assert cells.next_state is not None
     rng = np.random.default_rng(settings.seed)
     sessions = {s.name: _record_session(settings, s, cells.next_state, q, rng) for s in settings.sessions}
@@ -153,8 +169,9 @@ def simulate_patient(settings: PatientSettings = PatientSettings()) -> Synthetic
         width=w,
         height=h,
         bounds=settings.bounds,
-        ideal_reward=np.tile(base, 8),
-        task_rewards={d: np.tile(task[d], 8) for d in settings.directions},
+        ideal_reward=base,
+        direction_preference=settings.direction_preference,
+        task_rewards={d: task[d] for d in settings.directions},
         sessions=sessions,
     )
 

@@ -6,7 +6,13 @@ import pytest
 from metairl_engine import validate_trajectories
 from metairl_engine.grids import DIRECTION_NAMES, grid_mdp
 from metairl_engine.motion import DiscretiseSettings, Recording, demonstrations, segment
-from metairl_engine.patient import PatientSettings, SyntheticPatient, ideal_reward, simulate_patient
+from metairl_engine.patient import (
+    DIRECTION_PREFERENCE,
+    PatientSettings,
+    SyntheticPatient,
+    ideal_reward,
+    simulate_patient,
+)
 
 SIZE = 30
 SETTINGS = PatientSettings(width=SIZE, height=SIZE)
@@ -38,7 +44,6 @@ def test_sessions_are_valid_100_hz_recordings_with_instructions(patient: Synthet
 def test_ideal_reward_is_a_centre_bump_weaker_backward_left(patient: SyntheticPatient) -> None:
     r = patient.ideal_reward.reshape(8, SIZE, SIZE)  # (direction, y, x)
     assert patient.ideal_reward.shape == (8 * SIZE * SIZE,)
-    np.testing.assert_array_equal(r[0], r[5])  # the same in every velocity channel
     np.testing.assert_array_equal(patient.ideal_reward, ideal_reward(width=SIZE, height=SIZE))
     centre, quarter = SIZE // 2, SIZE // 4
     assert (
@@ -46,6 +51,32 @@ def test_ideal_reward_is_a_centre_bump_weaker_backward_left(patient: SyntheticPa
         > r[0, centre + quarter, centre + quarter]
         > r[0, centre - quarter, centre - quarter]
     )
+
+
+def test_ideal_reward_adds_a_preference_per_direction_of_motion(patient: SyntheticPatient) -> None:
+    r = patient.ideal_reward.reshape(8, SIZE, SIZE)
+    for d, preference in enumerate(DIRECTION_PREFERENCE):
+        np.testing.assert_allclose(r[d] - r[0], preference - DIRECTION_PREFERENCE[0])
+    assert np.argmin(DIRECTION_PREFERENCE) == DIRECTION_NAMES.index("backward left")
+    flat = ideal_reward(width=SIZE, height=SIZE, direction_preference=(0.0,) * 8).reshape(8, SIZE, SIZE)
+    np.testing.assert_array_equal(flat[0], flat[5])
+
+
+def test_the_costly_direction_is_demonstrated_less_than_without_the_preference(
+    patient: SyntheticPatient,
+) -> None:
+    def action_counts(sim: SyntheticPatient) -> np.ndarray:
+        counts = np.zeros(8)
+        for rec in sim.sessions.values():
+            demos = demonstrations(rec, discretise_settings=DiscretiseSettings(width=SIZE, height=SIZE))
+            for trajectories in demos.by_label.values():
+                for t in trajectories:
+                    counts += np.bincount(t.actions, minlength=8)
+        return counts
+
+    flat = simulate_patient(PatientSettings(width=SIZE, height=SIZE, direction_preference=(0.0,) * 8))
+    costly = DIRECTION_NAMES.index("backward left")
+    assert action_counts(patient)[costly] < 0.7 * action_counts(flat)[costly]
 
 
 def test_each_task_reward_peaks_in_its_instructed_direction(patient: SyntheticPatient) -> None:
