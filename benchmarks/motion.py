@@ -111,11 +111,16 @@ def visited_and_all(learned: np.ndarray, target: np.ndarray, visited: np.ndarray
     return f"{pearson(learned[visited], target[visited]):.2f} / {pearson(learned, target):.2f}"
 
 
+def table_head() -> list[str]:
+    """The header rows of a per-session table: a column per direction, then the baseline ("origin")."""
+    header = ["session", *DIRECTION_NAMES, "origin (baseline)"]
+    return ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)]
+
+
 def table(patient: SyntheticPatient, sessions: list[SessionResult], *, truth: str) -> list[str]:
     """Markdown rows: per session, Pearson of each direction's reward with ``truth`` ("ideal" or "task"),
     as "on the states its demonstrations visit / on all states" (the baseline: all the session's)."""
-    header = ["session", *DIRECTION_NAMES, "origin (baseline)"]
-    lines = ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)]
+    lines = table_head()
     for s in sessions:
         cells = [s.name]
         for d in DIRECTION_NAMES:
@@ -132,8 +137,7 @@ def table(patient: SyntheticPatient, sessions: list[SessionResult], *, truth: st
 def preference_table(patient: SyntheticPatient, sessions: list[SessionResult]) -> list[str]:
     """Markdown rows: per session, Pearson over the 8 velocity channels between each learned reward's channel
     means (all states) and the patient's preference per direction of motion."""
-    header = ["session", *DIRECTION_NAMES, "origin (baseline)"]
-    lines = ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)]
+    lines = table_head()
     truth = np.asarray(patient.direction_preference)
     for s in sessions:
         rewards = dict(zip(s.directions, s.result.rewards, strict=True))
