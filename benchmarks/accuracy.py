@@ -49,7 +49,7 @@ def run_one(
     from metairl_engine.fit import fit
 
     chosen = sims[:n_tasks]
-    started = time.perf_counter()
+    started, cpu_started = time.perf_counter(), time.process_time()
     result = fit([TaskData(world.mdp, s.trajectories[:n_demos], s.name) for s in chosen], config)
     scores = [
         pearson(result.rewards[i], s.true_reward, mask=np.arange(world.mdp.n_states) != s.goal)
@@ -61,6 +61,7 @@ def run_one(
         "steps": len(result.history),
         "kept_step": result.best_step,
         "seconds": time.perf_counter() - started,
+        "cpu_seconds": time.process_time() - cpu_started,
     }
 
 

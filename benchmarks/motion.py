@@ -11,11 +11,20 @@ states the demonstrations visit and on all states, with the wall time of each se
         [--images benchmarks/motion] [--outward-only] [--direction-preference R R R R R R R R]
 
 ``--size 30`` (7,200 states) runs in a few minutes for a quick look; only 100 reproduces the paper's MDP.
+
+The identifiability study (docs/motion.md) is a subcommand: it fits both sessions of the planning patient and
+of the controller patient (`metairl_engine.controller_patient`) with each config of `VARIANTS` and scores the
+learned baseline against the inherent preference; rows accumulate in ``benchmarks/motion/identifiability.json``
+and the table, with the kinematic readout of the same recordings, replaces MOTION.md's identifiability block::
+
+    .venv/bin/python benchmarks/motion.py identify [--size 30] [--seed 0]
+        [--generators planner controller controller-null] [--variants NAME ...] [--only-table]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
 import sys
@@ -23,6 +32,7 @@ import time
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -32,8 +42,11 @@ sys.path.insert(0, str(ROOT))
 import torch  # noqa: E402
 
 from metairl_engine import FitConfig, Layout, Trajectory  # noqa: E402
+from metairl_engine.baseline_readout import ring_centred  # noqa: E402
+from metairl_engine.controller_patient import ControllerSettings, simulate_controller_patient  # noqa: E402
 from metairl_engine.fit import FitResult, Progress, TaskData, fit  # noqa: E402
 from metairl_engine.grids import DIRECTION_NAMES, grid_mdp, velocity_coords  # noqa: E402
+from metairl_engine.kinematics import compare_recordings, comparison_png  # noqa: E402
 from metairl_engine.metrics import pearson  # noqa: E402
 from metairl_engine.motion import DiscretiseSettings, demonstrations  # noqa: E402
 from metairl_engine.patient import (  # noqa: E402
@@ -42,7 +55,7 @@ from metairl_engine.patient import (  # noqa: E402
     SyntheticPatient,
     simulate_patient,
 )
-from service.render import heatmap_png  # noqa: E402
+from service.files.images import heatmap_png  # noqa: E402
 
 GAMMA = 0.9
 """Discount of the learner's MDP (the tutorial's `POST /v1/mdps` value; the patient itself planned with 0.95)."""
@@ -287,11 +300,265 @@ def main() -> None:
         )
     )
     text = report(patient, sessions, command=command, outward_only=args.outward_only)
-    args.out.write_text(text)
+    previous = args.out.read_text() if args.out.exists() else ""
+    start = previous.find(f"<!-- {BLOCK} -->")
+    args.out.write_text(text + ("\n" + previous[start:] if start >= 0 else ""))  # keep `identify`'s block
     print(text)
     for path in save_heatmaps(patient, sessions, args.images):
         print("wrote", path.relative_to(ROOT) if path.is_relative_to(ROOT) else path)
 
 
+# --- identifiability study ---------------------------------------------------------------------------------
+
+VARIANTS: dict[str, FitConfig] = {
+    "paper (huber, all states)": CONFIG,
+    "sharing on visited states": FitConfig(sharing="huber", sharing_states="visited"),
+    "per-task offset (std)": FitConfig(sharing="std"),
+    "cell baseline": FitConfig(sharing="huber", baseline_features=(0, 1)),
+    "cell baseline, visited states": FitConfig(
+        sharing="huber", baseline_features=(0, 1), sharing_states="visited"
+    ),
+}
+"""Fit configs compared by ``identify`` (all else default); the keys are the table's names."""
+
+IDENTIFY_JSON = ROOT / "benchmarks" / "motion" / "identifiability.json"
+BLOCK = "identifiability"
+
+
+GENERATORS = ("planner", "controller", "controller-null")
+"""``identify``'s patients: `simulate_patient`, `simulate_controller_patient`, and the null check: the same
+controller whose paths ignore its preference map (``preference_gain=0``; the weak side stays), so its
+correlations are what the task structure alone gives a baseline against that map."""
+
+
+def simulate(generator: str, size: int, seed: int) -> Any:
+    """One of `GENERATORS`."""
+    if generator == "planner":
+        return simulate_patient(PatientSettings(width=size, height=size, seed=seed))
+    gain = 0.0 if generator == "controller-null" else ControllerSettings().preference_gain
+    return simulate_controller_patient(
+        ControllerSettings(width=size, height=size, seed=seed, preference_gain=gain)
+    )
+
+
+def identify_one(patient: Any, session: str, config: FitConfig) -> dict[str, Any]:
+    """Fit one session with ``config``; Pearson of the learned baseline with the patient's inherent preference
+    on the states all demonstrations visit, on all states, and per direction on that direction's states."""
+    w, h = patient.width, patient.height
+    demos = demonstrations(
+        patient.sessions[session], discretise_settings=DiscretiseSettings(width=w, height=h)
+    )
+    mdp = grid_mdp(width=w, height=h, velocity=True, gamma=GAMMA)
+    directions = [d for d in DIRECTION_NAMES if d in demos.by_label]
+    tasks = [TaskData(mdp=mdp, trajectories=demos.by_label[d], name=d) for d in directions]
+    started = time.perf_counter()
+    result = fit(tasks, config)
+    wall = time.perf_counter() - started
+    truth, base = patient.ideal_reward, result.baseline
+
+    def states(*names: str) -> np.ndarray:
+        return np.unique(np.concatenate([t.states for d in names for t in demos.by_label[d]]))
+
+    visited = states(*directions)
+    centred = {
+        name: ring_centred(values, width=w, height=h, states=visited)
+        for name, values in (("base", base), ("truth", truth))
+    }
+    return {
+        "visited": pearson(base[visited], truth[visited]),
+        "ring_centred": pearson(centred["base"], truth[visited]),
+        "ring_centred_both": pearson(centred["base"], centred["truth"]),
+        "all": pearson(base, truth),
+        "per_direction": {d: pearson(base[states(d)], truth[states(d)]) for d in directions},
+        "steps": len(result.history),
+        "wall_s": wall,
+    }
+
+
+def identify_table(entries: list[dict[str, Any]]) -> list[str]:
+    """Markdown rows, one per (generator, variant, session): visited, all, per direction."""
+    head = [
+        "patient",
+        "config",
+        "session",
+        "visited",
+        "all states",
+        "ring-centred vs preference",
+        "ring-centred vs ring-centred",
+        *DIRECTION_NAMES,
+        "steps",
+        "wall",
+    ]
+    lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
+    order = {name: k for k, name in enumerate(VARIANTS)}
+    for e in sorted(
+        entries, key=lambda e: (e["generator"], e["size"], e["seed"], order.get(e["variant"], 99))
+    ):
+        per = [f"{e['per_direction'][d]:+.2f}" if d in e["per_direction"] else "–" for d in DIRECTION_NAMES]
+        constant = all(v == 0.0 for v in e["per_direction"].values())  # pearson's 0.0 of a constant vector
+        cells = [
+            f"{e['generator']} {e['size']}×{e['size']} seed {e['seed']}",
+            e["variant"],
+            e["session"],
+            f"**{e['visited']:+.2f}**" + (" (constant baseline)" if constant else ""),
+            f"{e['all']:+.2f}",
+            f"{e['ring_centred']:+.2f}",
+            f"{e['ring_centred_both']:+.2f}",
+            *per,
+            str(e["steps"]),
+            f"{e['wall_s']:.0f} s",
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def readout_table(generator: str, size: int, seed: int, images: Path) -> list[str]:
+    """Markdown rows: peak reach per direction (mean [95 % interval], plate metres) of both sessions, and
+    stimulated minus unstimulated; draws the comparison figure to ``images/comparison-<generator>.png``."""
+    patient = simulate(generator, size, seed)
+    comparison = compare_recordings([patient.sessions["unstimulated"]], [patient.sessions["stimulated"]])
+    images.mkdir(parents=True, exist_ok=True)
+    png = comparison_png(comparison, names=("unstimulated", "stimulated"), units="m")
+    (images / f"comparison-{generator}.png").write_bytes(png)
+
+    def fmt(v: dict[str, Any]) -> str:
+        return (
+            f"{v['mean']:.3f} [{v['low']:.3f}, {v['high']:.3f}]"
+            if v["low"] is not None
+            else f"{v['mean']:.3f}"
+        )
+
+    lines = ["| " + " | ".join(["peak reach (m)", *DIRECTION_NAMES]) + " |", "|" + " --- |" * 9]
+    for side, name in (("a", "unstimulated"), ("b", "stimulated")):
+        rows = {r["direction"]: r for r in comparison[side]["directions"]}
+        cells = [fmt(rows[d]["peak_reach"]) if d in rows else "–" for d in DIRECTION_NAMES]
+        lines.append("| " + " | ".join([name, *cells]) + " |")
+    rows = {r["direction"]: r for r in comparison["directions"]}
+    diffs = [fmt(rows[d]["peak_reach_diff"]) if d in rows else "–" for d in DIRECTION_NAMES]
+    lines.append("| " + " | ".join(["stimulated − unstimulated", *diffs]) + " |")
+    return lines
+
+
+def radial_share_table(size: int, seed: int) -> list[str]:
+    """Markdown rows: per patient and session, the radial share of the preference's variance on visited states."""
+    lines = ["| patient | session | visited states | radial share |", "| --- | --- | --- | --- |"]
+    for generator in ("planner", "controller"):
+        patient = simulate(generator, size, seed)
+        for session, rec in patient.sessions.items():
+            demos = demonstrations(rec, discretise_settings=DiscretiseSettings(width=size, height=size))
+            visited = np.unique(np.concatenate([t.states for ts in demos.by_label.values() for t in ts]))
+            truth = patient.ideal_reward[visited]
+            centred = ring_centred(patient.ideal_reward, width=size, height=size, states=visited)
+            lines.append(
+                f"| {generator} | {session} | {len(visited)} | {1 - centred.var() / truth.var():.2f} |"
+            )
+    return lines
+
+
+def identify_commands(entries: list[dict[str, Any]]) -> list[str]:
+    """The ``identify`` commands that reproduce ``entries``: one per (size, seed, generator), naming the
+    variants unless all of `VARIANTS` were run."""
+    out = []
+    for size, seed, generator in sorted({(e["size"], e["seed"], e["generator"]) for e in entries}):
+        ran = {
+            e["variant"] for e in entries if (e["size"], e["seed"], e["generator"]) == (size, seed, generator)
+        }
+        variants = (
+            "" if ran >= set(VARIANTS) else " --variants " + " ".join(f"'{v}'" for v in VARIANTS if v in ran)
+        )
+        out.append(
+            f"`python benchmarks/motion.py identify --size {size} --seed {seed} --generators {generator}{variants}`"
+        )
+    return out
+
+
+def write_block(path: Path, name: str, text: str) -> None:
+    """Replace the text between ``<!-- name -->`` and ``<!-- /name -->`` in ``path`` (appended if absent)."""
+    start, end = f"<!-- {name} -->", f"<!-- /{name} -->"
+    old = path.read_text() if path.exists() else ""
+    block = f"{start}\n{text}\n{end}"
+    if start in old and end in old:
+        new = old[: old.index(start)] + block + old[old.index(end) + len(end) :]
+    else:
+        new = old.rstrip("\n") + "\n\n" + block + "\n"
+    path.write_text(new)
+
+
+def identify_main(argv: list[str]) -> None:
+    """``identify``: fit each generator's sessions with each variant; results accumulate in a JSON file and
+    the whole table is rewritten into MOTION.md's identifiability block."""
+    parser = argparse.ArgumentParser(prog="motion.py identify", description="baseline vs inherent preference")
+    parser.add_argument("--size", type=int, default=30)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--generators", nargs="+", default=["planner", "controller"], choices=GENERATORS)
+    parser.add_argument(
+        "--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS), metavar="NAME"
+    )
+    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "MOTION.md")
+    parser.add_argument("--json", type=Path, default=IDENTIFY_JSON, help="where results accumulate")
+    parser.add_argument(
+        "--only-table", action="store_true", help="rewrite the block from the JSON, fit nothing"
+    )
+    args = parser.parse_args(argv)
+    torch.set_num_threads(1)
+    entries: list[dict[str, Any]] = json.loads(args.json.read_text()) if args.json.exists() else []
+    for generator in [] if args.only_table else args.generators:
+        patient = simulate(generator, args.size, args.seed)
+        for variant in args.variants:
+            for session in patient.sessions:
+                found = identify_one(patient, session, VARIANTS[variant])
+                key = {"generator": generator, "size": args.size, "seed": args.seed, "variant": variant}
+                # re-read: another identify run (other generator) may have added rows meanwhile
+                entries = json.loads(args.json.read_text()) if args.json.exists() else []
+                entries = [e for e in entries if {k: e[k] for k in key} != key or e["session"] != session]
+                entries.append({**key, "session": session, **found})
+                print(f"{generator} {variant} {session}: visited {found['visited']:+.2f}", flush=True)
+                args.json.parent.mkdir(parents=True, exist_ok=True)
+                args.json.write_text(json.dumps(entries, indent=1))
+    configs = sorted({(e["size"], e["seed"]) for e in entries})
+    text = [
+        "## Identifiability: the learned baseline against the inherent preference",
+        "",
+        "Pearson correlation of the learned baseline reward with the patient's inherent preference "
+        "(`ideal_reward`) on the velocity-grid states all demonstrations visit (**visited**), on all states, "
+        "and per instructed direction on that direction's states. One fit per session over all directions, "
+        f"gamma {GAMMA}, out-and-back segments as the service stores them. Rows come from "
+        + "; ".join(identify_commands(entries))
+        + " (results accumulate in `benchmarks/motion/identifiability.json`; `--only-table` rewrites this "
+        "block from it). The planner is `simulate_patient` (plans on the velocity "
+        "grid; its preference is a cell map plus a preference per direction of motion), the controller "
+        "`simulate_controller_patient` (no planning; its preference is a cell map only). docs/motion.md "
+        "explains the configs.",
+        "",
+        *identify_table(entries),
+        "",
+        "### The kinematic readout on the same recordings",
+        "",
+        "Peak reach per instructed direction (`metairl_engine.kinematics.compare_recordings`, mean over the 3 "
+        "repetitions with its 95 % bootstrap interval). The controller's weak side is `left`. All five "
+        "descriptors of both patients are drawn in `benchmarks/motion/comparison-planner.png` and "
+        "`comparison-controller.png` (`comparison_png`).",
+        "",
+    ]
+    text += [
+        "### Radial share",
+        "",
+        "Share of the inherent preference's variance on the visited states that is a function of the distance "
+        "from the centre alone (1 − var(`ring_centred`(preference)) / var(preference)): the part no fit can "
+        "tell from moving out to the instructed distance.",
+        "",
+        *radial_share_table(*configs[-1]),
+        "",
+    ]
+    for generator in ("planner", "controller"):
+        text += [f"{generator}, {configs[-1][0]}×{configs[-1][0]}, seed {configs[-1][1]}:", ""]
+        text += [*readout_table(generator, *configs[-1], ROOT / "benchmarks" / "motion"), ""]
+    write_block(args.out, BLOCK, "\n".join(text))
+    print("\n".join(text))
+
+
 if __name__ == "__main__":
-    main()
+    if len(sys.argv) > 1 and sys.argv[1] == "identify":
+        identify_main(sys.argv[2:])
+    else:
+        main()

@@ -41,10 +41,10 @@ sys.path.insert(0, str(ROOT))
 
 from matplotlib.figure import Figure  # noqa: E402
 
+from metairl_cli.serve import child_environment, shut_down, spawn, wait_healthy  # noqa: E402
+from metairl_client import TERMINAL_STATUSES, Client, MetairlError  # noqa: E402
 from metairl_engine import Trajectory  # noqa: E402
-from service.broker import broker_url, delete_queue  # noqa: E402
-from service.demo_client import TERMINAL_STATUSES, ApiClient, ServiceError  # noqa: E402
-from service.serve import child_environment, shut_down, spawn, wait_healthy  # noqa: E402
+from service.jobs.broker import broker_url, delete_queue  # noqa: E402
 from service.settings import Settings  # noqa: E402
 
 TIMINGS = {
@@ -144,7 +144,7 @@ class Worker:
         """Start a worker with one job slot; returns at once (see `ready`)."""
         with open(log, "wb") as out:
             process = subprocess.Popen(
-                [sys.executable, "-m", "service.cli", "worker", "--concurrency", "1"],
+                [sys.executable, "-m", "metairl_cli.main", "worker", "--concurrency", "1"],
                 cwd=ROOT,
                 env=env,
                 stdout=out,
@@ -199,7 +199,7 @@ def environment(settings: Settings) -> dict[str, str]:
 def create_key(env: dict[str, str]) -> str:
     """Run ``metairl keys create`` (which also migrates the database) and return the key on its last line."""
     done = subprocess.run(
-        [sys.executable, "-m", "service.cli", "keys", "create", "--lab", "reliability"],
+        [sys.executable, "-m", "metairl_cli.main", "keys", "create", "--lab", "reliability"],
         cwd=ROOT,
         env=env,
         capture_output=True,
@@ -220,7 +220,7 @@ def free_port() -> int:
 def api_server(env: dict[str, str]) -> Iterator[str]:
     """Run the API under uvicorn as `metairl serve` does; yields its URL once ``/healthz`` answers."""
     port = free_port()
-    argv = [sys.executable, "-m", "uvicorn", "--factory", "service.app:create_app"]
+    argv = [sys.executable, "-m", "uvicorn", "--factory", "service.api.app:create_app"]
     api = spawn([*argv, "--host", "127.0.0.1", "--port", str(port), "--log-level", "warning"], env)
     try:
         url = f"http://127.0.0.1:{port}"
@@ -231,7 +231,7 @@ def api_server(env: dict[str, str]) -> Iterator[str]:
         shut_down([api])
 
 
-def upload_demonstrator(api: ApiClient) -> tuple[str, list[str]]:
+def upload_demonstrator(api: Client) -> tuple[str, list[str]]:
     """A grid MDP and a demonstrator with three tasks (walk right, up, left), three demonstrations each: ids."""
     mdp_id = api.create_mdp(
         {"kind": "grid", "name": "plate", "width": SIZE, "height": SIZE, "moves": 4, "gamma": 0.9}
@@ -250,15 +250,15 @@ def upload_demonstrator(api: ApiClient) -> tuple[str, list[str]]:
     return demonstrator_id, task_ids
 
 
-def get_json(api: ApiClient, path: str, **params: str) -> Any:
-    """``GET path`` and its JSON body; `ServiceError` for an error answer."""
+def get_json(api: Client, path: str, **params: str) -> Any:
+    """``GET path`` and its JSON body; `MetairlError` for an error answer."""
     response = api.http.get(path, params=params)
     if response.is_error:
-        raise ServiceError.from_response(response)
+        raise MetairlError.from_response(response)
     return response.json()
 
 
-def poll(api: ApiClient, job_id: str, timeline: Timeline) -> dict[str, Any]:
+def poll(api: Client, job_id: str, timeline: Timeline) -> dict[str, Any]:
     """One poll: the job (recorded as a `Poll`) and its whole event log (merged into the timeline)."""
     job = get_json(api, f"/v1/jobs/{job_id}")
     step = job["progress"]["step"] if job["progress"] else None
@@ -273,7 +273,7 @@ def poll(api: ApiClient, job_id: str, timeline: Timeline) -> dict[str, Any]:
 
 
 def run_with_a_crash(
-    api: ApiClient, workers: list[Worker], job: dict[str, Any], env: dict[str, str], timeout_s: float
+    api: Client, workers: list[Worker], job: dict[str, Any], env: dict[str, str], timeout_s: float
 ) -> tuple[Timeline, Crash, dict[str, Any]]:
     """Poll the job to its end; SIGKILL the worker part-way through attempt 1, then start a replacement.
 
@@ -415,7 +415,7 @@ def run(out: Path, broker: str | None, max_steps: int, timeout_s: float) -> None
         workers: list[Worker] = []
         try:
             key = create_key(env)
-            with api_server(env) as url, ApiClient.connect(url=url, api_key=key) as api:
+            with api_server(env) as url, Client.connect(url=url, api_key=key) as api:
                 workers.append(Worker.start(env, Path(tmp) / "worker-1.log"))
                 workers[0].wait_ready()
                 demonstrator_id, task_ids = upload_demonstrator(api)
@@ -449,7 +449,7 @@ def main() -> int:
     except subprocess.CalledProcessError as exc:
         print(f"reliability: {exc}\n{exc.stdout}{exc.stderr}", file=sys.stderr)
         return 1
-    except (RunFailed, ServiceError) as exc:
+    except (RunFailed, MetairlError) as exc:
         print(f"reliability: {exc}", file=sys.stderr)
         return 1
     return 0

@@ -1,6 +1,6 @@
 """`FitConfig`: every knob of a fit in one frozen dataclass, stored with each job's results.
 
-numpy-free and torch-free so the API can validate a job's config (API.md §5 contract names) without
+numpy-free and torch-free so the API can validate a job's config (docs/api.md, "Jobs": the contract names) without
 loading the engine. Field docstrings are the reference documentation of each setting.
 """
 
@@ -26,7 +26,9 @@ class FitConfig:
     maximum-causal-entropy IRL by soft value iteration (reference solver, one task at a time)."""
 
     sharing: Sharing = "huber"
-    """Reward-sharing loss between each task reward r_i and the baseline r_b (paper §III-C)."""
+    """Reward-sharing loss between each task reward r_i and the baseline r_b (paper §III-C). With ``none``
+    no baseline network is learned and the result's baseline is the mean of the task rewards, a summary
+    rather than an estimate of the inherent reward."""
 
     sharing_weight: float = 1.0
     """Weight of the sharing loss relative to the IRL loss; both are per-task means (NLL per demonstrated
@@ -35,17 +37,27 @@ class FitConfig:
     sharing_states: SharingStates = "all"
     """Evaluate the sharing loss on all states or only on states visited by the task's demonstrations."""
 
+    baseline_features: tuple[int, ...] | None = None
+    """Columns of the MDP's state features that the baseline network r_b sees; None: all of them, like the VR
+    networks. On a velocity grid (features x, y, direction one-hot) ``(0, 1)`` makes r_b a function of the
+    cell alone, compared by the sharing loss with each task reward in every direction of motion at that cell:
+    see docs/motion.md (identifiability) for why motion fits want it. Needs state features (not tabular)."""
+
     backup: Backup = "max"
-    """Bellman backup V(s) from Q(s, ·): max (paper eq. 5), logsumexp (MaxEnt) or BGI's (1/k)·logsumexp(k·Q)."""
+    """Bellman backup V(s) from Q(s, ·): max (paper eq. 7), logsumexp (MaxEnt) or BGI's (1/k)·logsumexp(k·Q)."""
 
     bgi_k: float = 10.0
     """Sharpness k of the BGI backup (only with ``backup="bgi"``)."""
 
     confidence: float = 1.0
-    """The paper's b: demonstrated actions follow softmax(b·Q(s, ·)) (paper eq. 8)."""
+    """The paper's b: demonstrated actions follow softmax(b·Q(s, ·)) (paper eq. 9–10)."""
 
     hidden: tuple[int, ...] = (100, 50, 25)
     """Hidden layer widths of each VR network and of the baseline network."""
+
+    fourier_octaves: int = 0
+    """Input encoding: each state feature x also enters the networks as sin(2^l·π·x), cos(2^l·π·x) for
+    l < this many octaves (0: raw features; no effect on tabular MDPs). Lets the MLPs represent hills."""
 
     learning_rate: float = 0.01
     """Adam's learning rate (paper: 0.01)."""
@@ -65,6 +77,13 @@ class FitConfig:
     patience: int = 100
     """Stop this many steps after the last step kept by the held-out rule (only with a hold-out; 0: never)."""
 
+    ensemble: int = 0
+    """Members K of the ensemble: each reward is the mean of K fits run side by side as one batch of T·K
+    networks, member k with its own initial weights, holding out fold k of each task's steps (so together
+    they learn from every step) and keeping the step its own held-out NLL chooses. Averaging K fits cuts
+    the variance of a reward learned from a few demonstrations; a step costs about K times as much.
+    0 (default): K = 4 for small fits, fewer as tasks × states grow, 1 from 32,768 (fit.ensemble_size)."""
+
     seed: int = 0
     """Seed of every random choice (initial weights, hold-out split): same seed, same result."""
 
@@ -76,15 +95,27 @@ class FitConfig:
                 issues.append(Issue(f"/config/{name}", message))
 
         need(self.sharing_weight >= 0, "sharing_weight", "must be ≥ 0")
+        need(
+            self.baseline_features is None
+            or (
+                len(self.baseline_features) > 0
+                and all(isinstance(c, int) and c >= 0 for c in self.baseline_features)
+                and len(set(self.baseline_features)) == len(self.baseline_features)
+            ),
+            "baseline_features",
+            "must be null or distinct feature column indices ≥ 0",
+        )
         need(self.bgi_k > 0, "bgi_k", "must be > 0")
         need(self.confidence > 0, "confidence", "must be > 0")
         need(all(isinstance(h, int) and h > 0 for h in self.hidden), "hidden", "must be positive integers")
         need(len(self.hidden) <= 8, "hidden", "at most 8 hidden layers")
+        need(0 <= self.fourier_octaves <= 8, "fourier_octaves", "must be in 0..8")
         need(0 < self.learning_rate <= 1, "learning_rate", "must be in (0, 1]")
         need(1 <= self.max_steps <= 100_000, "max_steps", "must be in 1..100000")
         need(self.tolerance >= 0, "tolerance", "must be ≥ 0")
         need(0 <= self.holdout_fraction < 1, "holdout_fraction", "must be in [0, 1)")
         need(self.patience >= 0, "patience", "must be ≥ 0")
+        need(0 <= self.ensemble <= 16, "ensemble", "must be in 0..16 (0: automatic)")
         need(self.seed >= 0, "seed", "must be ≥ 0")
         check(issues)
 
@@ -92,6 +123,8 @@ class FitConfig:
         """JSON-ready form (stored with every job and reward)."""
         d = asdict(self)
         d["hidden"] = list(self.hidden)
+        if self.baseline_features is not None:
+            d["baseline_features"] = list(self.baseline_features)
         return d
 
     @classmethod
@@ -102,6 +135,7 @@ class FitConfig:
         if unknown:
             raise InvalidInput([Issue(f"/config/{k}", "is not a known setting") for k in unknown])
         kwargs = dict(data)
-        if "hidden" in kwargs and isinstance(kwargs["hidden"], list):
-            kwargs["hidden"] = tuple(kwargs["hidden"])
+        for name in ("hidden", "baseline_features"):
+            if isinstance(kwargs.get(name), list):
+                kwargs[name] = tuple(kwargs[name])
         return cls(**kwargs)

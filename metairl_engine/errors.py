@@ -40,3 +40,12 @@ def check(issues: list[Issue]) -> None:
     """Raise `InvalidInput` if any issue was collected."""
     if issues:
         raise InvalidInput(issues)
+
+
+def integer_issues(settings: object, pointer: str, minimums: dict[str, int]) -> list[Issue]:
+    """An issue per field of ``settings`` named in ``minimums`` that is not an integer ≥ its minimum."""
+    return [
+        Issue(f"{pointer}/{name}", f"must be an integer ≥ {low}, got {getattr(settings, name)!r}")
+        for name, low in minimums.items()
+        if not isinstance(getattr(settings, name), int) or getattr(settings, name) < low
+    ]

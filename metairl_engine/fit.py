@@ -29,7 +29,7 @@ from metairl_engine.demos import validate_trajectories
 from metairl_engine.errors import Cancelled, InvalidInput, Issue, check
 from metairl_engine.holdout import Steps, split_steps
 from metairl_engine.mdp import MDP
-from metairl_engine.networks import StackedMLP
+from metairl_engine.networks import StackedMLP, fourier_features
 from metairl_engine.results import FitResult, Progress, TaskData
 from metairl_engine.sharing import segment_sum, sharing_loss
 
@@ -107,29 +107,70 @@ def _same_features(a: MDP, b: MDP) -> bool:
     return a.features is b.features or bool(np.array_equal(a.features, b.features))
 
 
+ENSEMBLE_BUDGET = 2**15
+"""Task-states per member that the automatic ensemble may fill (``FitConfig.ensemble = 0``)."""
+
+MAX_AUTO_MEMBERS = 4
+"""The most members the automatic ensemble uses."""
+
+
+def ensemble_size(config: FitConfig, *, n_tasks: int, n_states: int) -> int:
+    """Members K: ``config.ensemble``, or with 0 as many as fit ENSEMBLE_BUDGET (1 … MAX_AUTO_MEMBERS).
+
+    A step costs about K times a member's; a fit of T tasks on S states already evaluates T·S task-states
+    per step, so K = ⌊2^15 / (T·S)⌋ keeps small fits (where a few demonstrations leave the most variance)
+    averaged over 4 members and leaves large ones (an 80,000-state velocity grid) single.
+    """
+    if config.ensemble:
+        return config.ensemble
+    return max(1, min(MAX_AUTO_MEMBERS, ENSEMBLE_BUDGET // (n_tasks * n_states)))
+
+
 class _Problem:
-    """Everything about the data that stays fixed during optimisation, as index tensors."""
+    """Everything about the data that stays fixed during optimisation, as index tensors.
+
+    An ensemble of K members is one problem of T·K networks: network j = k·T + i plays task i in member k,
+    and member k holds out fold k of every task's steps; member k's baseline is row k of the baseline net.
+    """
 
     def __init__(self, tasks: Sequence[TaskData], config: FitConfig):
-        self.mdps = [t.mdp for t in tasks]
-        self.n_tasks, self.n_states = len(tasks), self.mdps[0].n_states
+        self.n_tasks = len(tasks)
+        self.n_members = ensemble_size(config, n_tasks=self.n_tasks, n_states=tasks[0].mdp.n_states)
+        self.n_nets = self.n_tasks * self.n_members
+        self.mdps = [t.mdp for t in tasks] * self.n_members
+        self.n_states = self.mdps[0].n_states
         self.gamma = torch.tensor([m.gamma for m in self.mdps], dtype=torch.float32)
         features = self.mdps[0].features
-        self.features = None if features is None else torch.from_numpy(features)
-        self.train, self.held = split_steps(
-            [t.trajectories for t in tasks], fraction=config.holdout_fraction, seed=config.seed
+        base_columns = _baseline_columns(config, features)
+        self.features = None if features is None else _encode(features, config)
+        self.base_features = (
+            self.features
+            if features is None or base_columns is None
+            else _encode(features[:, base_columns], config)
         )
+        demos = [t.trajectories for t in tasks]
+        folds = [
+            split_steps(demos, fraction=config.holdout_fraction, seed=config.seed, fold=k)
+            for k in range(self.n_members)
+        ]
+        self.train = _stack_members([train for train, _ in folds], self.n_tasks)
+        self.held = _stack_members([held for _, held in folds], self.n_tasks)
+        held_member = self.held.tasks // self.n_tasks
+        self.held_of_member = [
+            torch.from_numpy(np.flatnonzero(held_member == k)) for k in range(self.n_members)
+        ]
 
-        # Rows (task, state) on which the sharing loss compares r_i with r_b.
+        # Rows (network, state) on which the sharing loss compares r_i with r_b.
         if config.sharing == "none":
             share = Steps(*(np.zeros(0, dtype=np.int64) for _ in range(3)))
         elif config.sharing_states == "all":
-            share_tasks = np.repeat(np.arange(self.n_tasks), self.n_states)
-            share = Steps(share_tasks, np.tile(np.arange(self.n_states), self.n_tasks), 0 * share_tasks)
+            share_nets = np.repeat(np.arange(self.n_nets), self.n_states)
+            share = Steps(share_nets, np.tile(np.arange(self.n_states), self.n_nets), 0 * share_nets)
         else:
             visited = [np.unique(np.concatenate([tr.states for tr in t.trajectories])) for t in tasks]
-            share_tasks = np.concatenate([np.full(len(v), i) for i, v in enumerate(visited)]).astype(np.int64)
-            share = Steps(share_tasks, np.concatenate(visited).astype(np.int64), 0 * share_tasks)
+            visited *= self.n_members
+            share_nets = np.concatenate([np.full(len(v), j) for j, v in enumerate(visited)]).astype(np.int64)
+            share = Steps(share_nets, np.concatenate(visited).astype(np.int64), 0 * share_nets)
 
         # U: the states where f is needed (successors of every row, plus the sharing states themselves).
         needed = [successors(self.mdps, s.tasks, s.states) for s in (self.train, self.held, share) if len(s)]
@@ -150,16 +191,44 @@ class _Problem:
             self.q_share = rows(share)
             self.share_f = torch.from_numpy(share.tasks * n_u + columns[share.states])
             self.base_states, base_index = np.unique(share.states, return_inverse=True)
-            self.share_base = torch.from_numpy(base_index.astype(np.int64))
-            self.inputs_base = self.inputs(self.base_states)
+            member = share.tasks // self.n_tasks  # row k of the baseline network's (K, B) outputs
+            self.share_base = torch.from_numpy(member * len(self.base_states) + base_index.astype(np.int64))
+            self.inputs_base = self.inputs(self.base_states, base=True)
         else:
             self.base_states = np.zeros(0, dtype=np.int64)
         self.inputs_u = self.inputs(self.states_u)
 
-    def inputs(self, states: np.ndarray) -> torch.Tensor:
-        """Network inputs of these states: feature rows, or the state indices themselves when tabular."""
+    def inputs(self, states: np.ndarray, *, base: bool = False) -> torch.Tensor:
+        """Network inputs of these states: feature rows (the baseline's own if ``base``), or the state
+        indices themselves when tabular."""
         index = torch.from_numpy(states.astype(np.int64))
-        return index if self.features is None else self.features[index]
+        features = self.base_features if base else self.features
+        return index if features is None else features[index]
+
+
+def _encode(features: np.ndarray, config: FitConfig) -> torch.Tensor:
+    """Network inputs from state features: the raw columns and their Fourier waves (`fourier_octaves`)."""
+    return torch.from_numpy(fourier_features(np.ascontiguousarray(features), octaves=config.fourier_octaves))
+
+
+def _baseline_columns(config: FitConfig, features: np.ndarray | None) -> list[int] | None:
+    """The feature columns the baseline network sees (`FitConfig.baseline_features`); None: all."""
+    if config.baseline_features is None:
+        return None
+    n = 0 if features is None else features.shape[1]
+    if features is None or max(config.baseline_features) >= n:
+        what = "the MDP has no state features" if features is None else f"the MDP has {n} feature columns"
+        check([Issue("/config/baseline_features", f"names columns the baseline cannot see: {what}")])
+    return list(config.baseline_features)
+
+
+def _stack_members(parts: Sequence[Steps], n_tasks: int) -> Steps:
+    """One `Steps` of T·K networks from K members' steps of T tasks (member k's task i is network k·T + i)."""
+    return Steps(
+        np.concatenate([p.tasks + k * n_tasks for k, p in enumerate(parts)]),
+        np.concatenate([p.states for p in parts]),
+        np.concatenate([p.actions for p in parts]),
+    )
 
 
 def per_task_nll(
@@ -169,6 +238,27 @@ def per_task_nll(
     nll = F.cross_entropy(confidence * q, actions, reduction="none")
     count = segment_sum(torch.ones_like(nll), tasks, n_tasks).clamp_min(1.0)
     return segment_sum(nll, tasks, n_tasks) / count
+
+
+TEMPERATURES = torch.logspace(-2, 2, 17, base=2.0)
+"""Scales t of Q (¼ … 4, 17 steps) over which the held-out NLL is calibrated (see `calibrated_nll`)."""
+
+
+def calibrated_nll(
+    q: torch.Tensor, actions: torch.Tensor, *, confidence: float, groups: Sequence[torch.Tensor]
+) -> list[torch.Tensor]:
+    """Per group of held-out rows, their NLLs under softmax(t·b·Q) at the t in TEMPERATURES best for the group.
+
+    The VR networks fix the scale of Q only through the fixed confidence b, and that scale keeps growing
+    while the ranking of actions — what the reward says — is still improving: the plain held-out NLL then
+    rises because the policy is over-confident, not because the reward got worse (on velocity grids it
+    stopped fits at step 5-60 whose reward kept improving for hundreds of steps; benchmarks/stopping.py).
+    Scoring each step at its best temperature judges the reward's ranking of actions, not its scale.
+    """
+    nll = torch.stack(
+        [F.cross_entropy(t * confidence * q, actions, reduction="none") for t in TEMPERATURES]
+    )  # (len(TEMPERATURES), N)
+    return [nll[nll[:, rows].mean(dim=1).argmin(), rows] for rows in groups]
 
 
 class HeldOutStopper:
@@ -207,10 +297,10 @@ def objective(
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """The training loss from the network outputs: (loss, IRL loss (T,), sharing loss (T,)).
 
-    ``f`` (T, |U|) are the VR values f_i(s) = r_i(s) + γ V_i(s) (eq. 5) on the states U, ``r_b`` the
-    baseline reward on ``problem.base_states`` (None without sharing).
+    ``f`` (T·K, |U|) are the VR values f_i(s) = r_i(s) + γ V_i(s) (eq. 5) on the states U, ``r_b`` (K, B)
+    the members' baseline rewards on ``problem.base_states`` (None without sharing).
     """
-    n_tasks = problem.n_tasks
+    n_tasks = problem.n_nets
     irl = per_task_nll(  # NLL of demonstrated actions under softmax(b·Q)                 eq. 6, 10
         problem.q_train(f),
         problem.train_actions,
@@ -222,7 +312,7 @@ def objective(
     if r_b is not None:
         v = backup(problem.q_share(f), kind=config.backup, bgi_k=config.bgi_k)  # V_i(s)     eq. 7
         r = f.reshape(-1)[problem.share_f] - problem.gamma[problem.share_tasks] * v  # r_i  eq. 8
-        diff = r - r_b[problem.share_base]
+        diff = r - r_b.reshape(-1)[problem.share_base]
         shared = sharing_loss(diff, problem.share_tasks, n_tasks=n_tasks, kind=config.sharing)
     loss = (irl + config.sharing_weight * shared).mean()  # eq. 1, averaged over tasks
     return loss, irl, shared
@@ -242,14 +332,14 @@ def gradient_step(
     n_b = len(problem.base_states) if sharing_on else 0
     if max(n_u, n_b) <= chunk:
         f = vr(problem.inputs_u)
-        r_b = base(problem.inputs_base)[0] if sharing_on else None
+        r_b = base(problem.inputs_base) if sharing_on else None
         loss, irl, shared = objective(problem, f, r_b, config)
         loss.backward()
         return loss.detach(), irl.detach(), shared.detach(), f.detach()
     with torch.no_grad():
         f = torch.cat([vr(problem.inputs_u[i : i + chunk]) for i in range(0, n_u, chunk)], dim=1)
         r_b = (
-            torch.cat([base(problem.inputs_base[i : i + chunk])[0] for i in range(0, n_b, chunk)])
+            torch.cat([base(problem.inputs_base[i : i + chunk]) for i in range(0, n_b, chunk)], dim=1)
             if n_b
             else None
         )
@@ -264,7 +354,7 @@ def gradient_step(
     if r_b is not None:
         assert r_b.grad is not None
         for i in range(0, n_b, chunk):
-            base(problem.inputs_base[i : i + chunk])[0].backward(r_b.grad[i : i + chunk])
+            base(problem.inputs_base[i : i + chunk]).backward(r_b.grad[:, i : i + chunk])
     return loss.detach(), irl.detach(), shared.detach(), f.detach()
 
 
@@ -275,25 +365,38 @@ def _fit_meta_irl(
     progress: ProgressCallback | None,
     should_stop: StopCheck | None,
 ) -> FitResult:
-    """The paper's method: joint Adam on all VR networks and the baseline network (Algorithm 1)."""
+    """The paper's method: joint Adam on all VR networks and the baseline network (Algorithm 1).
+
+    With an ensemble the K members train side by side in the same batched ops; Adam's update is elementwise,
+    so each member follows exactly the path it would follow alone, and each keeps the step its own
+    held-out NLL chooses.
+    """
     started = time.perf_counter()
     problem = _Problem(tasks, config)
-    n_tasks = problem.n_tasks
     generator = torch.Generator().manual_seed(config.seed)
     n_inputs = problem.n_states if problem.features is None else problem.features.shape[1]
     tabular = problem.features is None
     vr = StackedMLP(
-        n_members=n_tasks, n_inputs=n_inputs, hidden=config.hidden, tabular=tabular, generator=generator
+        n_members=problem.n_nets,
+        n_inputs=n_inputs,
+        hidden=config.hidden,
+        tabular=tabular,
+        generator=generator,
     )
+    base_inputs = n_inputs if problem.base_features is None else problem.base_features.shape[1]
     base = StackedMLP(
-        n_members=1, n_inputs=n_inputs, hidden=config.hidden, tabular=tabular, generator=generator
+        n_members=problem.n_members,
+        n_inputs=base_inputs,
+        hidden=config.hidden,
+        tabular=tabular,
+        generator=generator,
     )
     params = [*vr.parameters(), *base.parameters()]
     optimiser = torch.optim.Adam(params, lr=config.learning_rate)
 
     history: list[Progress] = []
-    stopper = HeldOutStopper(patience=config.patience)
-    kept_params = [p.detach().clone() for p in params]
+    stoppers = [HeldOutStopper(patience=config.patience) for _ in range(problem.n_members)]
+    kept = _KeptParameters(vr, base, n_tasks=problem.n_tasks)
     previous_loss: float | None = None
     flat_steps = 0  # consecutive steps whose loss change was within the tolerance
     for step in range(1, config.max_steps + 1):
@@ -305,12 +408,14 @@ def _fit_meta_irl(
         held_nll: float | None = None
         if len(problem.held):
             with torch.no_grad():
-                per_step = F.cross_entropy(
-                    config.confidence * problem.q_held(f), problem.held_actions, reduction="none"
+                q_held = problem.q_held(f)
+                held_nll = float(F.cross_entropy(config.confidence * q_held, problem.held_actions))
+                per_member = calibrated_nll(
+                    q_held, problem.held_actions, confidence=config.confidence, groups=problem.held_of_member
                 )
-            held_nll = float(per_step.mean())
-            if stopper.update(step, per_step):
-                kept_params = [p.detach().clone() for p in params]
+            for k, (stopper, per_step) in enumerate(zip(stoppers, per_member, strict=True)):
+                if stopper.update(step, per_step):
+                    kept.save(k)
 
         optimiser.step()
 
@@ -326,7 +431,7 @@ def _fit_meta_irl(
         history.append(record)
         if progress is not None:
             progress(record)
-        if held_nll is not None and stopper.should_stop(step):
+        if held_nll is not None and all(s.should_stop(step) for s in stoppers):
             break
         flat = previous_loss is not None and abs(record.loss - previous_loss) <= config.tolerance * max(
             abs(previous_loss), 1e-12
@@ -337,11 +442,29 @@ def _fit_meta_irl(
         previous_loss = record.loss
 
     if len(problem.held):
-        with torch.no_grad():
-            for p, kept in zip(params, kept_params, strict=True):
-                p.copy_(kept)
-    best_step = stopper.kept_step if len(problem.held) else len(history)
+        kept.restore()
+    best_step = int(np.median([s.kept_step for s in stoppers])) if len(problem.held) else len(history)
     return _evaluate(problem, vr, base, config, history=history, best_step=best_step)
+
+
+class _KeptParameters:
+    """Per-member copies of the parameters at each member's kept step (member k: networks k·T … k·T + T − 1
+    of ``vr`` and row k of ``base``)."""
+
+    def __init__(self, vr: StackedMLP, base: StackedMLP, *, n_tasks: int):
+        self.pairs = [(p, p.detach().clone(), n_tasks) for p in vr.parameters()]
+        self.pairs += [(p, p.detach().clone(), 1) for p in base.parameters()]
+
+    def save(self, member: int) -> None:
+        """Copy member ``member``'s current parameters."""
+        for live, copy, rows in self.pairs:
+            copy[member * rows : (member + 1) * rows] = live.detach()[member * rows : (member + 1) * rows]
+
+    def restore(self) -> None:
+        """Put every member's kept parameters back into the networks."""
+        with torch.no_grad():
+            for live, copy, _ in self.pairs:
+                live.copy_(copy)
 
 
 def _evaluate(
@@ -353,26 +476,40 @@ def _evaluate(
     history: list[Progress],
     best_step: int,
 ) -> FitResult:
-    """Rewards, values and policies of every task on every state from the kept networks (eq. 5–9)."""
+    """Rewards, values and policies of every task on every state from the kept networks (eq. 5–9).
+
+    With an ensemble, each quantity is the mean over the K members (policies: the members' mixture).
+    """
     all_states = np.arange(problem.n_states)
+    n_members, n_tasks, n_states = problem.n_members, problem.n_tasks, problem.n_states
     with torch.no_grad():
-        chunks = [
-            problem.inputs(all_states[i : i + EVAL_CHUNK]) for i in range(0, problem.n_states, EVAL_CHUNK)
-        ]
-        f = torch.cat([vr(c) for c in chunks], dim=1)  # (T, S)
+        chunks = [problem.inputs(all_states[i : i + EVAL_CHUNK]) for i in range(0, n_states, EVAL_CHUNK)]
+        f = torch.cat([vr(c) for c in chunks], dim=1)  # (T·K, S)
         # Without sharing the baseline network is never trained: report the mean task reward instead.
-        baseline = torch.cat([base(c)[0] for c in chunks]) if config.sharing != "none" else None
-        tasks = np.repeat(np.arange(problem.n_tasks), problem.n_states)
+        baseline = (
+            torch.cat(
+                [
+                    base(problem.inputs(all_states[i : i + EVAL_CHUNK], base=True))
+                    for i in range(0, n_states, EVAL_CHUNK)
+                ],
+                dim=1,
+            ).mean(dim=0)
+            if config.sharing != "none"
+            else None
+        )
+        nets = np.repeat(np.arange(problem.n_nets), n_states)
         q_all = QRows(
             problem.mdps,
-            tasks,
-            np.tile(all_states, problem.n_tasks),
+            nets,
+            np.tile(all_states, problem.n_nets),
             columns=all_states,
-            n_columns=problem.n_states,
-        )(f).reshape(problem.n_tasks, problem.n_states, -1)
+            n_columns=n_states,
+        )(f).reshape(problem.n_nets, n_states, -1)
         values = backup(q_all, kind=config.backup, bgi_k=config.bgi_k)
-        rewards = f - problem.gamma[:, None] * values
+        rewards = (f - problem.gamma[:, None] * values).reshape(n_members, n_tasks, n_states).mean(dim=0)
+        values = values.reshape(n_members, n_tasks, n_states).mean(dim=0)
         policies = torch.softmax(config.confidence * q_all, dim=-1)
+        policies = policies.reshape(n_members, n_tasks, n_states, -1).mean(dim=0)
         if baseline is None:
             baseline = rewards.mean(dim=0)
     return FitResult(

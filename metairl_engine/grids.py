@@ -1,4 +1,4 @@
-"""Grid-world MDPs built server side (API.md §1 ``kind: grid``): plain grids and the paper's velocity grid.
+"""Grid-world MDPs built server side (docs/api.md, "Grid": ``kind: grid``): plain grids and the paper's velocity grid.
 
 numpy only. One compass table, `DIRECTIONS`, is used by the grids, the motion pipeline and the docs:
 index 0..7 = E, NE, N, NW, W, SW, S, SE as (dx, dy) with +y pointing *forward* on the force plate.

@@ -27,16 +27,21 @@ class Steps:
 
 
 def split_steps(
-    demonstrations: Sequence[Sequence[Trajectory]], *, fraction: float, seed: int
+    demonstrations: Sequence[Sequence[Trajectory]], *, fraction: float, seed: int, fold: int = 0
 ) -> tuple[Steps, Steps]:
-    """(train, held-out) steps: ⌊fraction·n⌋ random steps of each task's n are held out, ≥ 1 kept for training."""
+    """(train, held-out) steps: m = ⌊fraction·n⌋ random steps of each task's n are held out, ≥ 1 kept.
+
+    Fold k holds out positions k·m … (k+1)·m − 1 (mod n) of one seeded permutation of each task's steps,
+    so the folds 0 … ⌈1/fraction⌉ − 1 of one seed hold out disjoint steps (k-fold cross-fitting).
+    """
     rng = np.random.default_rng(seed)
     parts: dict[bool, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {True: [], False: []}
     for t, trajectories in enumerate(demonstrations):
         states, actions = state_action_pairs(trajectories)
         n = len(actions)
         held = np.zeros(n, dtype=bool)
-        held[rng.permutation(n)[: min(int(fraction * n), n - 1)]] = True
+        m = min(int(fraction * n), n - 1)
+        held[rng.permutation(n)[(fold * m + np.arange(m)) % n]] = True
         for is_held in (False, True):
             keep = held == is_held
             parts[is_held].append((np.full(int(keep.sum()), t, dtype=np.int64), states[keep], actions[keep]))

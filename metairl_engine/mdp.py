@@ -86,7 +86,7 @@ class MDP:
         p: object = None,
         layout: Layout | None = None,
     ) -> MDP:
-        """Coerce array-likes and validate everything; raises `InvalidInput` with API.md pointers.
+        """Coerce array-likes and validate everything; raises `InvalidInput` with JSON pointers into the request (docs/api.md, "MDPs").
 
         Pointers name the request fields: ``/gamma``, ``/features/3/1``, ``/transitions/next_state/7/2``,
         ``/transitions/p/12``, ``/layout``.
@@ -195,7 +195,7 @@ class MDP:
         return np.asarray(sorted_keys[pos] == keys)
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """The MDP's arrays under API.md's `.npz` names (features omitted when tabular)."""
+        """The MDP's arrays under the `.npz` upload's names (docs/api.md, "MDPs") (features omitted when tabular)."""
         out: dict[str, np.ndarray] = {}
         if self.features is not None:
             out["features"] = self.features

@@ -24,8 +24,17 @@ def _masked(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None) -> tuple[np.n
     return x, y
 
 
+def unit_scale(v: np.ndarray) -> np.ndarray:
+    """``v`` divided by its largest magnitude (correlations are scale-invariant), so that sums, differences
+    and squares of finite values near the float64 limits (±1e308) or near zero neither overflow nor
+    underflow."""
+    top = float(np.max(np.abs(v))) if v.size else 0.0
+    return v / top if np.isfinite(top) and top > 0 else v
+
+
 def _weighted_pearson(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> float:
     """Pearson correlation of x and y under state weights w (normalised here); 0.0 when undefined."""
+    x, y = unit_scale(x), unit_scale(y)
     if np.ptp(x) == 0 or np.ptp(y) == 0:
         return 0.0
     w = w / w.sum()

@@ -80,7 +80,9 @@ class Recording:
     ) -> Recording:
         """Coerce and validate; raises `InvalidInput` with pointers like ``/samples/17/t``.
 
-        Instructions are matched case-insensitively to ``labels``; empty or None means no instruction.
+        Instructions are read by `canonical_instruction` (``forward_left``, ``Forward-Left`` and ``forward
+        left`` are the same; ``rest``, ``none``, empty or None mean no instruction) and must then be one of
+        ``labels``. Every issue names its sample; they come in sample order.
         """
         issues = bounds.issues()
         columns: dict[str, np.ndarray] = {}
@@ -101,9 +103,13 @@ class Recording:
         if n < min_samples:
             what = "is empty" if n == 0 else f"has {n} sample{'s' * (n != 1)}"
             check([Issue("/samples", f"{what}; a recording needs at least {min_samples} samples")])
-        issues += _sample_issues(columns, bounds)
-        labels_out = None if instruction is None else _instruction_labels(instruction, labels, issues)
-        check(issues[:MAX_ISSUES])
+        found = _sample_issues(columns, bounds)
+        labels_out = None
+        if instruction is not None:
+            labels_out, unknown = _instruction_labels(instruction, labels)
+            found += unknown
+        found.sort(key=lambda item: item[0])  # stable: per sample, columns in t, x, y, instruction order
+        check(issues + [issue for _, issue in found[:MAX_ISSUES]])
         return cls(t=columns["t"], x=columns["x"], y=columns["y"], bounds=bounds, instruction=labels_out)
 
     @property
@@ -112,8 +118,8 @@ class Recording:
         return float(1.0 / np.median(np.diff(self.t)))
 
 
-def _sample_issues(columns: dict[str, np.ndarray], bounds: Bounds) -> list[Issue]:
-    """Non-finite values, non-increasing times and samples off the plate, in sample order."""
+def _sample_issues(columns: dict[str, np.ndarray], bounds: Bounds) -> list[tuple[int, Issue]]:
+    """Non-finite values, non-increasing times and samples off the plate, as (sample, issue) in sample order."""
     found: list[tuple[int, str, str]] = []
     for name, col in columns.items():
         found += [
@@ -134,28 +140,49 @@ def _sample_issues(columns: dict[str, np.ndarray], bounds: Bounds) -> list[Issue
         col = columns[name]
         for k in np.flatnonzero(np.isfinite(col) & ((col < lo) | (col > hi)))[:MAX_ISSUES]:
             found.append((int(k), name, f"{name} = {col[k]:g} is outside the plate [{lo:g}, {hi:g}]"))
-    found.sort(key=lambda item: item[0])
-    return [Issue(f"/samples/{k}/{name}", message) for k, name, message in found[:MAX_ISSUES]]
+    order = {"t": 0, "x": 1, "y": 2}
+    found.sort(key=lambda item: (item[0], order[item[1]]))
+    return [(k, Issue(f"/samples/{k}/{name}", message)) for k, name, message in found[:MAX_ISSUES]]
+
+
+REST_SPELLINGS = frozenset({"", "rest", "none", "no instruction", "null", "nan"})
+"""Instruction values (after `canonical_instruction`'s normalisation) that mean "no instruction"."""
+
+
+def canonical_instruction(value: object) -> str:
+    """An uploaded instruction in canonical spelling: lower case, ``_`` and ``-`` read as spaces, runs of
+    spaces collapsed (``Forward_Left`` → ``forward left``); rest spellings (`REST_SPELLINGS`, None, NaN)
+    become `NO_INSTRUCTION`. Whether the result is a known direction is the caller's check."""
+    if value is None or (isinstance(value, float) and value != value):
+        return NO_INSTRUCTION
+    text = " ".join(str(value).replace("_", " ").replace("-", " ").lower().split())
+    return NO_INSTRUCTION if text in REST_SPELLINGS else text
 
 
 def _instruction_labels(
-    instruction: Sequence[str | None] | np.ndarray, labels: Sequence[str], issues: list[Issue]
-) -> np.ndarray:
-    """Normalised instruction strings (N,); unknown ones are appended to ``issues``."""
-    known = {label.lower(): label for label in labels}
-    raw = np.array(["" if v is None else str(v).strip().lower() for v in instruction], dtype=str)
-    values, inverse = np.unique(raw, return_inverse=True)
-    mapped = np.array([known.get(v, NO_INSTRUCTION) for v in values], dtype=object)
-    for v in values:
-        if v and v not in known:
-            k = int(np.flatnonzero(raw == v)[0])
-            issues.append(
-                Issue(
-                    f"/samples/{k}/instruction",
-                    f"unknown instruction {v!r}; use one of {', '.join(labels)} or none",
-                )
-            )
-    return mapped[inverse].astype(str)
+    instruction: Sequence[str | None] | np.ndarray, labels: Sequence[str]
+) -> tuple[np.ndarray, list[tuple[int, Issue]]]:
+    """Canonical instruction strings (N,) and, for each unknown value, (its first sample, an issue)."""
+    known = {canonical_instruction(label): label for label in labels}
+    raw = np.array(["" if v is None else str(v) for v in instruction], dtype=str)
+    values, first, inverse = np.unique(raw, return_index=True, return_inverse=True)
+    names = [canonical_instruction(str(v)) for v in values]
+    mapped = [NO_INSTRUCTION if n == NO_INSTRUCTION else known.get(n) for n in names]
+    found = [
+        (
+            int(k),
+            Issue(
+                f"/samples/{int(k)}/instruction",
+                f"unknown instruction {str(v)!r}; use one of {', '.join(labels)} (words joined by spaces, "
+                "_ or -, any case), or rest, none or empty for no instruction",
+            ),
+        )
+        for v, k, m in zip(values, first, mapped, strict=True)
+        if m is None
+    ]
+    found.sort(key=lambda item: item[0])
+    table = np.array([NO_INSTRUCTION if m is None else m for m in mapped] or [NO_INSTRUCTION], dtype=object)
+    return table[inverse.reshape(-1)].astype(str), found[:MAX_ISSUES]
 
 
 @dataclass(frozen=True)

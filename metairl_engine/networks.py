@@ -10,8 +10,23 @@ from __future__ import annotations
 import itertools
 import math
 
+import numpy as np
 import torch
 from torch import nn
+
+
+def fourier_features(features: np.ndarray, *, octaves: int) -> np.ndarray:
+    """Each feature column x followed by sin(2^l·π·x) and cos(2^l·π·x) for l = 0 … octaves − 1, float32.
+
+    A ReLU MLP on raw coordinates builds smooth bumps out of many linear pieces and learns them slowly
+    ("spectral bias"); sinusoids of the coordinates at a few octaves let it represent hills directly
+    (Tancik et al. 2020). ``octaves=0`` returns the features unchanged.
+    """
+    if octaves == 0:
+        return features
+    scaled = features[:, :, None] * (np.pi * 2.0 ** np.arange(octaves))  # (S, F, L)
+    waves = np.concatenate([np.sin(scaled), np.cos(scaled)], axis=2).reshape(len(features), -1)
+    return np.concatenate([features, waves], axis=1).astype(np.float32)
 
 
 class StackedMLP(nn.Module):

@@ -17,7 +17,7 @@ from functools import partial
 
 import numpy as np
 
-from metairl_engine.errors import Issue, check
+from metairl_engine.errors import Issue, check, integer_issues
 from metairl_engine.grids import DIRECTION_NAMES, DIRECTIONS, grid_mdp, velocity_coords, velocity_state
 from metairl_engine.motion import NO_INSTRUCTION, Bounds, Recording
 from metairl_engine.planning import transition_matrix, value_iteration
@@ -76,11 +76,7 @@ class PatientSettings:
 
     def issues(self, pointer: str = "/patient") -> list[Issue]:
         """Unusable settings."""
-        out = [
-            Issue(f"{pointer}/{name}", f"must be an integer ≥ {low}, got {getattr(self, name)!r}")
-            for name, low in (("width", 8), ("height", 8), ("repetitions", 1))
-            if not isinstance(getattr(self, name), int) or getattr(self, name) < low
-        ]
+        out = integer_issues(self, pointer, {"width": 8, "height": 8, "repetitions": 1})
         if not 0 < self.reach < 1:
             out.append(Issue(f"{pointer}/reach", "must be in (0, 1)"))
         if len(self.direction_preference) != len(DIRECTION_NAMES):

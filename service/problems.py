@@ -9,11 +9,14 @@ from typing import Any
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from sqlalchemy.exc import OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match
 
 from metairl_engine.errors import InvalidInput
 
 PROBLEM_JSON = "application/problem+json"
+HTTP_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
 log = logging.getLogger(__name__)
 
 
@@ -43,12 +46,6 @@ class ApiError(Exception):
         if self.errors:
             out["errors"] = self.errors
         return out
-
-
-class BadRequest(ApiError):
-    """The request is malformed in a way no field pointer describes (e.g. an unreadable upload)."""
-
-    status, type, title = 400, "bad-request", "Bad request"
 
 
 class Unauthorized(ApiError):
@@ -85,6 +82,12 @@ class Unprocessable(ApiError):
     """The body is well-formed but invalid; `errors` names each offending field, trajectory and step."""
 
     status, type, title = 422, "validation", "Invalid input"
+
+
+class DatabaseUnavailable(ApiError):
+    """The database could not be reached or dropped the connection (e.g. it restarted): retry shortly."""
+
+    status, type, title = 503, "database-unavailable", "Database unavailable"
 
 
 def problem_type(slug: str) -> str:
@@ -154,6 +157,50 @@ def validation_errors(errors: Sequence[Any], body: Any) -> Unprocessable:
     return Unprocessable(f"The request is invalid. {where}{first['message']}", errors=items)
 
 
+def not_utf8_json() -> Unprocessable:
+    """422 for a JSON body whose bytes are not UTF-8 (JSON must be, RFC 8259)."""
+    return Unprocessable(
+        "The body is not valid JSON: it must be UTF-8 encoded text (RFC 8259).",
+        errors=[{"pointer": "", "message": "is not UTF-8 encoded JSON text"}],
+    )
+
+
+def _media_type(request: Request) -> str:
+    """The request's media type without parameters, lower case ("" when absent)."""
+    return request.headers.get("content-type", "").partition(";")[0].strip().lower()
+
+
+def _is_json(kind: str) -> bool:
+    """Whether a media type is JSON (``application/json`` or ``…+json``)."""
+    return kind == "application/json" or kind.endswith("+json")
+
+
+def _json_syntax_error(error: Any, body: Any) -> Unprocessable:
+    """A JSON syntax error as a 422 for the whole body (pointer ""), naming the line and column."""
+    position = tuple(error.get("loc", ()))[-1]
+    reason = str((error.get("ctx") or {}).get("error") or error.get("msg") or "JSON decode error")
+    where = ""
+    if isinstance(position, int) and isinstance(body, str | bytes):
+        text = body if isinstance(body, str) else body.decode("utf-8", "replace")
+        line = text.count("\n", 0, position) + 1
+        column = position - (text.rfind("\n", 0, position) + 1) + 1
+        where = f" at line {line} column {column}"
+    message = f"is not valid JSON: {reason}{where}"
+    return Unprocessable(f"The body {message}.", errors=[{"pointer": "", "message": message}])
+
+
+def _allowed_methods(request: Request) -> list[str]:
+    """Every method some route of the app takes at this request's path (the ``Allow`` of a 405): each
+    standard method is matched against the app's routes as a request of that method would be."""
+    routes = request.app.router.routes
+    allowed = [
+        method
+        for method in HTTP_METHODS
+        if any(route.matches({**request.scope, "method": method})[0] == Match.FULL for route in routes)
+    ]
+    return allowed
+
+
 def install_handlers(app: FastAPI) -> None:
     """Map every error the app can raise to problem+json; unexpected exceptions become an opaque 500."""
 
@@ -168,16 +215,43 @@ def install_handlers(app: FastAPI) -> None:
         return problem_response(from_invalid_input(exc))
 
     @app.exception_handler(RequestValidationError)
-    async def _request_validation(_request: Request, exc: RequestValidationError) -> JSONResponse:
-        """FastAPI's parameter and body validation: 422 with pointers."""
-        return problem_response(validation_errors(exc.errors(), exc.body))
+    async def _request_validation(request: Request, exc: RequestValidationError) -> JSONResponse:
+        """FastAPI's parameter and body validation: 422 with pointers; 415 for a body that is not JSON; a
+        JSON syntax error points at the body as a whole and names its line and column."""
+        errors = exc.errors()
+        body_errors = [e for e in errors if tuple(e.get("loc", ()))[:1] == ("body",)]
+        kind = _media_type(request)
+        if body_errors and kind and not _is_json(kind):
+            return problem_response(
+                UnsupportedMediaType(f"Content-Type {kind!r} is not accepted; send application/json.")
+            )
+        syntax = [e for e in body_errors if e.get("type") == "json_invalid"]
+        if syntax:
+            return problem_response(_json_syntax_error(syntax[0], exc.body))
+        return problem_response(validation_errors(errors, exc.body))
 
     @app.exception_handler(StarletteHTTPException)
-    async def _http_error(_request: Request, exc: StarletteHTTPException) -> JSONResponse:
-        """Starlette's HTTP errors (unknown route, wrong method) as problems."""
-        error = ApiError(str(exc.detail), headers=dict(exc.headers or {}))
+    async def _http_error(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+        """Starlette's HTTP errors (unknown route, wrong method) as problems; a 405's ``Allow`` lists every
+        method of the path; a JSON body that is not UTF-8 is a 422 like any other malformed JSON."""
+        if exc.status_code == 400 and _is_json(_media_type(request)):
+            return problem_response(not_utf8_json())
+        headers = dict(exc.headers or {})
+        if exc.status_code == 405:
+            headers["Allow"] = ", ".join(_allowed_methods(request))
+        error = ApiError(str(exc.detail), headers=headers)
         error.status, error.type, error.title = exc.status_code, f"http-{exc.status_code}", str(exc.detail)
         return problem_response(error)
+
+    @app.exception_handler(OperationalError)
+    async def _database_unavailable(request: Request, exc: OperationalError) -> JSONResponse:
+        """A lost or refused database connection (the API does not ping connections before use): 503."""
+        log.warning("database unavailable on %s %s: %s", request.method, request.url.path, exc.orig)
+        return problem_response(
+            DatabaseUnavailable(
+                "The database could not be reached; retry in a moment.", headers={"Retry-After": "1"}
+            )
+        )
 
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:

@@ -30,10 +30,36 @@ class Settings(BaseSettings):
     max_json_bytes: int = 64 * MIB
     """Largest JSON request body."""
 
+    max_state_actions: int = 32_000_000
+    """Largest MDP, as states × actions (the paper's 100×100 velocity grid: 80,000 × 8 = 640,000); checked on
+    upload and again when a job is submitted."""
+
+    max_features: int = 4096
+    """Widest feature matrix (features per state); checked on upload and when a job is submitted."""
+
+    max_array_elements: int = 64_000_000
+    """Most elements of any one array of an upload (256 MB as float32); an `.npz` member's header is checked
+    against this before the member is read."""
+
+    max_hidden_units: int = 4096
+    """Largest hidden layer a job's ``config.hidden`` may ask for."""
+
     idempotency_ttl_s: int = 24 * 3600
     """How long an ``Idempotency-Key`` replays its first response."""
 
-    # Jobs and workers (API.md §5): heartbeats, the reaper, attempts and time limits.
+    api_key_cache_s: float = 0.0
+    """How long an API process trusts a key the database confirmed; a revoked key is refused within this (0: always ask)."""
+
+    db_pool_size: int = 20
+    """PostgreSQL connections each process keeps open (an API process serves up to 40 requests at once)."""
+
+    db_max_overflow: int = 20
+    """Extra PostgreSQL connections a process may open beyond the pool at a peak (closed when returned)."""
+
+    db_pool_recycle_s: int = 1800
+    """A pooled PostgreSQL connection older than this (seconds) is replaced before use, never pinged per request."""
+
+    # Jobs and workers (docs/api.md, "Jobs"): heartbeats, the reaper, attempts and time limits.
     queue_name: str = "metairl"
     """The broker queue jobs travel on (deployments sharing one broker give each its own)."""
 
@@ -63,6 +89,28 @@ class Settings(BaseSettings):
 
     job_time_limit_s: int = 6 * 3600
     """Longest a job may run before it is failed (the broker's visibility timeout is set above this)."""
+
+    # Live events and webhooks (docs/api.md, "Following a job live" and "Webhooks").
+    events_poll_s: float = 0.5
+    """How often an open event stream (`GET /v1/jobs/{id}/events`, `text/event-stream`) looks for new events."""
+
+    events_stream_max_s: float = 3600.0
+    """Longest one event stream stays open; the client reconnects with ``Last-Event-ID`` and goes on."""
+
+    webhook_allow_private: bool = False
+    """Accept webhook URLs on private, loopback or link-local addresses (tests, one-machine set-ups)."""
+
+    webhook_poll_s: float = 1.0
+    """How often each worker looks for webhook deliveries that are due."""
+
+    webhook_timeout_s: float = 5.0
+    """How long one webhook delivery attempt waits for the receiver."""
+
+    webhook_max_attempts: int = 8
+    """Delivery attempts of one webhook event before it is given up (retried with exponential backoff)."""
+
+    webhook_backoff_s: float = 5.0
+    """Wait before the second delivery attempt; each later wait doubles (capped at an hour)."""
 
     @property
     def resolved_database_url(self) -> str:

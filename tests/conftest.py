@@ -14,8 +14,8 @@ from fastapi import FastAPI
 from fastapi.testclient import TestClient
 from psycopg import sql
 
-from service.app import create_app
-from service.keys import create_key
+from metairl_cli.keys import create_key
+from service.api.app import create_app
 from service.settings import Settings
 
 POSTGRES_ADMIN = "postgresql://postgres@127.0.0.1:5432/postgres"

@@ -46,7 +46,7 @@ def metairl_serve(folder: Path, *, timeout_s: float = 90.0) -> Iterator[Served]:
     log = folder / "serve.log"
     with log.open("wb") as sink:
         proc = subprocess.Popen(
-            [sys.executable, "-m", "service.cli", "serve", "--port", str(port)],
+            [sys.executable, "-m", "metairl_cli", "serve", "--port", str(port)],
             cwd=REPO,
             env=env,
             stdout=sink,

@@ -17,10 +17,8 @@ from fastapi.testclient import TestClient
 from sqlalchemy import create_engine, select
 from sqlalchemy.orm import Session
 
-from metairl_engine.metrics import pearson
-from service.demo import API_KEY_ENV, resolve_api_key, run_demo, upload_world
-from service.demo_client import ApiClient, ServiceError
-from service.demo_experiment import (
+from metairl_cli.demo import API_KEY_ENV, resolve_api_key, run_demo, upload_world
+from metairl_cli.demo_experiment import (
     QUICK,
     DemoSettings,
     JobOutcome,
@@ -29,10 +27,12 @@ from service.demo_experiment import (
     make_experiment,
     plan_jobs,
 )
-from service.demo_report import FIGURE_FILE, HEATMAP_FILES, pearson_figure, summarize, write_report
-from service.models.labs import Lab
-from service.serve import LOCAL_LAB
+from metairl_cli.demo_report import FIGURE_FILE, HEATMAP_FILES, pearson_figure, summarize, write_report
+from metairl_cli.serve import LOCAL_LAB
+from metairl_client import Client, MetairlError
+from metairl_engine.metrics import pearson
 from service.settings import Settings
+from service.store.models.labs import Lab
 from tests.served import free_port, metairl_serve
 
 REPO = Path(__file__).resolve().parents[1]
@@ -130,16 +130,16 @@ def test_summary_figure_and_report_files(tmp_path: Path) -> None:
     assert results["jobs"][0]["pearson"] == list(outcomes[0].pearsons)
 
 
-def mock_api(handler: Callable[[httpx.Request], httpx.Response]) -> ApiClient:
-    """An `ApiClient` whose requests are answered by ``handler``."""
-    return ApiClient(httpx.Client(transport=httpx.MockTransport(handler), base_url="http://metairl.test"))
+def mock_api(handler: Callable[[httpx.Request], httpx.Response]) -> Client:
+    """An `Client` whose requests are answered by ``handler``."""
+    return Client(httpx.Client(transport=httpx.MockTransport(handler), base_url="http://metairl.test"))
 
 
 def test_problem_json_becomes_a_readable_service_error() -> None:
     api = mock_api(
         lambda _: httpx.Response(422, json=PROBLEM, headers={"content-type": "application/problem+json"})
     )
-    with pytest.raises(ServiceError) as caught:
+    with pytest.raises(MetairlError) as caught:
         api.create_mdp({"kind": "explicit"})
     text = str(caught.value)
     assert text.splitlines()[0] == f"HTTP 422 Invalid input (POST /v1/mdps): {PROBLEM['detail']}"
@@ -150,7 +150,7 @@ def test_problem_json_becomes_a_readable_service_error() -> None:
 
 def test_a_non_json_error_keeps_its_status_and_text() -> None:
     api = mock_api(lambda _: httpx.Response(502, text="upstream down"))
-    with pytest.raises(ServiceError, match=r"HTTP 502 Bad Gateway \(GET /v1/jobs/job_1\): upstream down"):
+    with pytest.raises(MetairlError, match=r"HTTP 502 Bad Gateway \(GET /v1/jobs/job_1\): upstream down"):
         api.get_job("job_1")
 
 
@@ -162,7 +162,7 @@ def test_run_demo_prints_the_problem_and_exits_non_zero(
             return httpx.Response(200, json={"status": "ok"})
         return httpx.Response(422, json=PROBLEM, headers={"content-type": "application/problem+json"})
 
-    monkeypatch.setattr(ApiClient, "connect", classmethod(lambda cls, **_: mock_api(answer)))
+    monkeypatch.setattr(Client, "connect", classmethod(lambda cls, **_: mock_api(answer)))
     assert run_demo(url="http://metairl.test", api_key="k", out=str(tmp_path / "out"), quick=True) == 1
     err = capsys.readouterr().err
     assert "Invalid input" in err and "/transitions/next_state/7/2: must be in 0..8, got 9" in err
@@ -176,7 +176,7 @@ def test_run_demo_says_when_nothing_answers(tmp_path: Path, capsys: pytest.Captu
 
 def test_upload_and_submit_against_the_api(client: TestClient, api_key: str) -> None:
     client.headers["Authorization"] = f"Bearer {api_key}"
-    api = ApiClient(client)
+    api = Client(client)
     sim = make_experiment(TINY)[1]
     world = upload_world(api, sim)
     mdp = client.get(f"/v1/mdps/{world.mdp_id}").json()
@@ -211,7 +211,7 @@ def test_api_key_comes_from_the_argument_the_environment_or_the_local_database(
 
 
 def test_the_demo_never_imports_torch() -> None:
-    code = "import sys, service.demo; print('torch' in sys.modules)"
+    code = "import sys, metairl_cli.demo; print('torch' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 

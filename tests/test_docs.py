@@ -26,8 +26,8 @@ import pytest
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
-from service.app import create_app
-from service.keys import create_key
+from metairl_cli.keys import create_key
+from service.api.app import create_app
 from service.settings import Settings
 
 REPO = Path(__file__).resolve().parents[1]
@@ -38,9 +38,6 @@ DOCUMENTED = ("README.md", "docs/api.md", "docs/architecture.md")
 EXTRA_VARIABLES = {"METAIRL_API_KEY"}
 """Environment variables the docs name that are not `Settings` fields (read by `metairl demo`)."""
 FENCE = re.compile(r"^```(?P<info>[^\n`]*)\n(?P<body>.*?)^```[ \t]*$", re.M | re.S)
-PENDING_ROUTES: set[tuple[str, str]] = set()
-"""API.md routes the docs describe that are still being built (rewards.py): their examples are skipped, not
-failed, while the app lacks them. Remove entries once they exist."""
 PAGES = (
     *DOCUMENTED,
     *sorted({f"docs/{page.name}" for page in (REPO / "docs").glob("*.md")} - set(DOCUMENTED)),
@@ -48,24 +45,6 @@ PAGES = (
     "benchmarks/MOTION.md",
 )
 """Every documentation page: their relative links must resolve and they must name no machine paths."""
-
-
-PENDING_FORMATS: set[str] = set()
-"""Download formats of ``GET /v1/rewards/{reward_id}`` still being built (rewards.py), handled likewise."""
-
-
-def pending_routes_in(code: str, app: FastAPI) -> list[str]:
-    """The `PENDING_ROUTES` a block's code uses (by their last fixed segment) and `PENDING_FORMATS` it asks
-    for that ``app`` lacks."""
-    paths = app.openapi()["paths"]
-    parameters = paths["/v1/rewards/{reward_id}"]["get"]["parameters"]
-    formats = next(p for p in parameters if p["name"] == "format")["schema"].get("enum", [])
-    missing = [f"?format={f}" for f in sorted(PENDING_FORMATS - set(formats)) if f'"format": "{f}"' in code]
-    for method, template in sorted(PENDING_ROUTES):
-        literal = [part for part in template.split("/") if part and "{" not in part][-1]
-        if f"/{literal}" in code and method.lower() not in paths.get(template, {}):
-            missing.append(f"{method} {template}")
-    return missing
 
 
 @dataclass(frozen=True)
@@ -97,14 +76,12 @@ def blocks(path: str, language: str | None = None) -> list[Block]:
 
 def run_blocks(python: list[Block], app: FastAPI, api_key: str, *, with_worker: bool) -> dict[str, Any]:
     """Execute python blocks in order in one namespace (``worker`` blocks only if ``with_worker``);
-    returns the namespace. A block using a `PENDING_ROUTES` route the app lacks is left out and the test
-    skipped at the end, saying so. ``httpx.Client(...)`` in the blocks gets a TestClient of ``app``,
+    returns the namespace. ``httpx.Client(...)`` in the blocks gets a TestClient of ``app``,
     and ``METAIRL_API_KEY`` is ``api_key``. A failing block's traceback names its file and line."""
     assert python, "no python blocks"
     unknown = {tag for b in python for tag in b.tags} - {"worker"}
     assert not unknown, f"{python[0].path}: unknown python block tags {unknown}"
     namespace: dict[str, Any] = {"__name__": f"docs:{python[0].path}"}
-    skipped: list[str] = []
     clients: list[TestClient] = []
 
     def client_factory(*, base_url: str = "http://testserver", headers: Any = None, **_: Any) -> TestClient:
@@ -119,16 +96,11 @@ def run_blocks(python: list[Block], app: FastAPI, api_key: str, *, with_worker: 
             for block in python:
                 if "worker" in block.tags and not with_worker:
                     continue
-                if pending_routes_in(block.code, app):
-                    skipped.append(f"{block.where} uses {pending_routes_in(block.code, app)}")
-                    continue
                 exec(compile("\n" * (block.line - 1) + block.code, block.path, "exec"), namespace)
         finally:
             for client in clients:
                 client.close()
     assert clients, f"{python[0].path}: the first block must create `client` with httpx.Client(...)"
-    if skipped:
-        pytest.skip("every other block passed; pending routes not in the app yet: " + "; ".join(skipped))
     return namespace
 
 
@@ -289,18 +261,12 @@ def test_every_curl_line_uses_an_existing_route(path: str, openapi: dict[str, An
     commands = curl_commands(path)
     if path != "docs/architecture.md":
         assert commands, f"{path} has no curl examples"
-    missing: list[str] = []
-    pending: list[str] = []
-    for block, argv in commands:
-        method, url_path = curl_request(argv)
-        if not find_route(openapi, method, url_path):
-            is_pending = any(
-                route_pattern(t).match(re.sub(r"\$\{?\w+\}?", "x", url_path)) for _, t in PENDING_ROUTES
-            )
-            (pending if is_pending else missing).append(f"{block.where}: {method} {url_path}")
+    missing = [
+        f"{block.where}: {method} {url_path}"
+        for block, (method, url_path) in ((b, curl_request(argv)) for b, argv in commands)
+        if not find_route(openapi, method, url_path)
+    ]
     assert not missing, "curl examples use routes the app does not have:\n" + "\n".join(missing)
-    if pending:
-        pytest.skip("routes still being built (PENDING_ROUTES): " + "; ".join(pending))
 
 
 def test_curl_parser_rejects_unknown_routes(openapi: dict[str, Any]) -> None:
@@ -344,6 +310,10 @@ def test_every_setting_is_in_the_readme_table_with_its_default() -> None:
         default = field.default
         if default is None:
             assert stated is None, f"{variable}: README says {stated!r}, the default is unset"
+        elif isinstance(default, bool):
+            assert stated in {"true", "false"} and (stated == "true") == default, (
+                f"{variable}: README says {stated!r}, default {default!r}"
+            )
         elif isinstance(default, Path):
             assert Path(stated) == default, f"{variable}: README says {stated!r}, the default is {default}"
         else:

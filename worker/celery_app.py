@@ -14,7 +14,7 @@ from typing import Any, ClassVar
 
 from celery import Celery, bootsteps
 
-from service.broker import celery_config
+from service.jobs.broker import celery_config
 from service.settings import get_settings
 
 log = logging.getLogger(__name__)
@@ -50,8 +50,30 @@ class ReaperStep(bootsteps.StartStopStep):
             log.exception("reaper pass failed; retrying in %s s", get_settings().reaper_interval_s)
 
 
+class WebhookStep(bootsteps.StartStopStep):
+    """Runs `worker.webhooks.Deliverer`, the thread sending webhook deliveries, in the worker's main process."""
+
+    def __init__(self, parent: Any, **kwargs: Any):
+        super().__init__(parent, **kwargs)
+        self.thread: Any = None
+
+    def start(self, parent: Any) -> None:
+        """Start the sending thread."""
+        from worker.context import sessions
+        from worker.webhooks import Deliverer
+
+        self.thread = Deliverer(sessions(), get_settings())
+        self.thread.start()
+
+    def stop(self, parent: Any) -> None:
+        """Stop it after its current pass."""
+        if self.thread is not None:
+            self.thread.stop()
+            self.thread = None
+
+
 def make_app() -> Celery:
-    """The Celery app configured from `Settings` (broker shared with the API via `service.broker`)."""
+    """The Celery app configured from `Settings` (broker shared with the API via `service.jobs.broker`)."""
     settings = get_settings()
     app = Celery("metairl", include=["worker.tasks"])
     app.conf.update(celery_config(settings))
@@ -67,6 +89,7 @@ def make_app() -> Celery:
         worker_enable_remote_control=not app.conf.broker_url.startswith("filesystem://"),
     )
     app.steps["worker"].add(ReaperStep)
+    app.steps["worker"].add(WebhookStep)
     return app
 
 

@@ -6,8 +6,8 @@ import os
 
 from sqlalchemy.orm import Session, sessionmaker
 
-from service.db import make_engine, make_sessionmaker
 from service.settings import get_settings
+from service.store.db import make_engine, make_sessionmaker
 
 _sessions: dict[int, sessionmaker[Session]] = {}
 
@@ -17,5 +17,5 @@ def sessions() -> sessionmaker[Session]:
     pid = os.getpid()
     if pid not in _sessions:
         _sessions.clear()
-        _sessions[pid] = make_sessionmaker(make_engine(get_settings()))
+        _sessions[pid] = make_sessionmaker(make_engine(get_settings(), pre_ping=True))
     return _sessions[pid]

@@ -8,6 +8,9 @@ between commit and send, a broker lost it): when one waited ``job_requeue_after_
 queue was empty, its message is sent again, at most ``job_max_resends`` times. Every worker runs
 `reap_once` periodically; each change is a conditional UPDATE (same status, same attempt, still older
 than the cutoff), so concurrent reapers and a worker that comes back to life cannot act twice on one job.
+
+The queries and those fenced writes are `service/jobs/reaping.py`; here are the passes, their sessions
+and commits, the logging and the broker calls.
 """
 
 from __future__ import annotations
@@ -17,24 +20,19 @@ from dataclasses import dataclass
 from datetime import datetime, timedelta
 from functools import lru_cache
 
-from sqlalchemy import func, select
 from sqlalchemy.orm import Session, sessionmaker
 
-from service.jobstatus import JobStatus
-from service.jobstore import owned_by, send_or_fail, touch_queued, transition
-from service.models.base import utcnow
-from service.models.jobs import Job, JobEvent
-from service.queue import CeleryJobQueue, EnqueueFailed, JobQueue
+from service.jobs.queue import CeleryJobQueue, EnqueueFailed, JobQueue
+from service.jobs.reaping import BATCH, RESENT, settle_lost, settle_stale, stale_running, waiting_queued
+from service.jobs.status import JobStatus
+from service.jobs.transitions import send_or_fail
 from service.settings import Settings, get_settings
+from service.store.models.base import utcnow
 from worker.context import sessions
 
+__all__ = ["BATCH", "RESENT", "Reaped", "reap", "reap_once", "resend_lost"]
+
 log = logging.getLogger(__name__)
-
-BATCH = 100
-"""Most stale jobs handled in one pass (the next pass takes the rest)."""
-
-RESENT = "message sent again"
-"""How the status event of a re-send begins; counting these events counts a job's re-sends."""
 
 
 @dataclass(frozen=True)
@@ -63,61 +61,21 @@ def reap(
 ) -> list[Reaped]:
     """Re-queue, cancel or fail every running job whose last heartbeat is older than ``job_stale_after_s``."""
     cutoff = (now or utcnow()) - timedelta(seconds=settings.job_stale_after_s)
-    limit = timedelta(seconds=settings.job_time_limit_s)
     with make_session() as session:
-        stale = session.execute(
-            select(
-                Job.id, Job.attempts, Job.max_attempts, Job.cancel_requested, Job.started_at, Job.heartbeat_at
-            )
-            .where(Job.status == JobStatus.RUNNING.value, Job.heartbeat_at < cutoff)
-            .order_by(Job.heartbeat_at)
-            .limit(BATCH)
-        ).all()
+        stale = stale_running(session, cutoff=cutoff)
     done: list[Reaped] = []
-    for job_id, attempts, max_attempts, cancel_requested, started_at, heartbeat_at in stale:
-        lost = f"the worker running attempt {attempts} stopped sending heartbeats (last at {heartbeat_at:%H:%M:%S} UTC)"
-        values: dict[str, object] = {"heartbeat_at": None}
-        if cancel_requested:
-            status, message = JobStatus.CANCELLED, f"cancelled on request; {lost}"
-        elif started_at is not None and heartbeat_at is not None and heartbeat_at - started_at >= limit:
-            # Alive past the soft limit: the hard limit killed the pool process, and would kill a re-run too.
-            status = JobStatus.FAILED
-            message = (
-                f"The job ran longer than the limit of {settings.job_time_limit_s} s and did not stop when asked, "
-                "so its worker process was killed; lower config.max_steps, fit fewer or smaller tasks, or ask "
-                "the operator to raise METAIRL_JOB_TIME_LIMIT_S."
-            )
-            values["error"] = message
-        elif attempts < max_attempts:
-            status, message = (
-                JobStatus.QUEUED,
-                f"{lost}; re-queued for attempt {attempts + 1} of {max_attempts}",
-            )
-        else:
-            status = JobStatus.FAILED
-            message = (
-                f"The job was started {attempts} times and each time its worker stopped responding ({lost}); "
-                "workers die like this when killed or out of memory: try fewer states, smaller config.hidden "
-                "or fewer tasks, or ask the operator to check the workers, then submit it again."
-            )
-            values["error"] = message
+    for row in stale:
         with make_session() as session:
-            changed = transition(
-                session,
-                job_id,
-                JobStatus.RUNNING,
-                status,
-                where=(*owned_by(attempts), Job.heartbeat_at < cutoff),
-                values=values,
-                message=message,
-            )
+            settled = settle_stale(session, row, settings, cutoff=cutoff)
             session.commit()
-            if changed is None:
+            if settled is None:
                 continue
-            log.warning("reaper: job %s → %s: %s", job_id, status.value, message)
-            if status is JobStatus.QUEUED and not send_or_fail(session, queue, job_id):
+            status, message = settled
+            log.warning("reaper: job %s → %s: %s", row.id, status.value, message)
+            if status is JobStatus.QUEUED and not send_or_fail(session, queue, row.id):
+                session.commit()
                 status = JobStatus.FAILED
-        done.append(Reaped(job_id, status, message))
+        done.append(Reaped(row.id, status, message))
     return done
 
 
@@ -132,12 +90,7 @@ def resend_lost(
     now = now or utcnow()
     cutoff = now - timedelta(seconds=settings.job_requeue_after_s)
     with make_session() as session:
-        waiting = session.execute(
-            select(Job.id, Job.updated_at)
-            .where(Job.status == JobStatus.QUEUED.value, Job.updated_at < cutoff)
-            .order_by(Job.updated_at)
-            .limit(BATCH)
-        ).all()
+        waiting = waiting_queued(session, cutoff=cutoff)
     if not waiting:
         return []
     try:
@@ -149,39 +102,14 @@ def resend_lost(
     done: list[Reaped] = []
     for job_id, since in waiting:
         with make_session() as session:
-            resends = session.execute(
-                select(func.count())
-                .select_from(JobEvent)
-                .where(
-                    JobEvent.job_id == job_id, JobEvent.kind == "status", JobEvent.message.startswith(RESENT)
-                )
-            ).scalar_one()
-            unclaimed = f"no worker claimed the job for {(now - since).total_seconds():.0f} s and the broker queue was empty"
-            if resends >= settings.job_max_resends:
-                status = JobStatus.FAILED
-                message = (
-                    f"The job's message was sent {resends + 1} times but never reached a worker ({unclaimed}); "
-                    f"check that a worker runs on queue {settings.queue_name!r} and that the broker keeps its "
-                    "messages, then submit the job again."
-                )
-                changed = transition(
-                    session,
-                    job_id,
-                    JobStatus.QUEUED,
-                    status,
-                    where=(Job.updated_at < cutoff,),
-                    values={"error": message},
-                    message=message,
-                )
-            else:
-                status = JobStatus.QUEUED
-                message = f"{RESENT} ({resends + 1} of {settings.job_max_resends}): {unclaimed}"
-                changed = touch_queued(session, job_id, waiting_since_before=cutoff, now=now, message=message)
+            settled = settle_lost(session, job_id, since, settings, now=now, cutoff=cutoff)
             session.commit()
-            if changed is None:
+            if settled is None:
                 continue
+            status, message = settled
             log.warning("reaper: job %s: %s", job_id, message)
             if status is JobStatus.QUEUED and not send_or_fail(session, queue, job_id):
+                session.commit()
                 status = JobStatus.FAILED
         done.append(Reaped(job_id, status, message))
     return done

@@ -18,12 +18,13 @@ from sqlalchemy.orm import Session, sessionmaker
 from metairl_engine.config import FitConfig
 from metairl_engine.errors import Cancelled, InvalidInput
 from metairl_engine.fit import FitResult, TaskData, fit
-from service.inputs import load_mdp, load_trajectories
-from service.jobstatus import JobStatus
-from service.jobstore import add_reward, owned_by, transition
-from service.models.demonstrators import Task
-from service.models.jobs import Job
+from service.jobs.rewards import add_reward
+from service.jobs.status import JobStatus
+from service.jobs.transitions import owned_by, transition
 from service.settings import Settings, get_settings
+from service.store.loaders import load_mdp, load_trajectories
+from service.store.models.demonstrators import Task
+from service.store.models.jobs import Job
 from worker.context import sessions
 from worker.monitor import Monitor, progress_values
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import logging
 
-from service.broker import TASK_NAME
-from service.jobstore import claim
+from service.jobs.broker import TASK_NAME
+from service.jobs.transitions import claim
 from service.settings import get_settings
 from worker.celery_app import app
 from worker.context import sessions

@@ -1,4 +1,4 @@
-"""Motion analysis against a running metairl service (docs/tutorial-motion.md), with httpx only.
+"""Motion analysis against a running metairl service (docs/tutorial-motion.md), with the lab client.
 
 Two steps, each a sub-command:
 
@@ -7,31 +7,30 @@ Two steps, each a sub-command:
 
 ``simulate`` writes ``unstimulated.csv`` and ``stimulated.csv`` (columns t,x,y,instruction at 100 Hz) and
 ``ideal_reward.csv`` (one value per velocity-grid state) — replace them with your own force-plate exports.
-``run`` creates the velocity grid MDP, a demonstrator per session, uploads each recording, submits a meta-IRL
-job per session, waits for it, and prints every direction's reward against the ideal reward (the paper's
+``run`` talks to the service through ``metairl_client.Client`` (httpx and numpy only): it creates the velocity
+grid MDP, a demonstrator per session, uploads each recording, submits a meta-IRL job per session, waits for
+it (a progress bar on stderr), and prints every direction's reward against the ideal reward (the paper's
 Table I, on the states the direction's demonstrations visit and on all states) with the fit's time, saving a
-heatmap per direction and of the baseline next to the data. ``--size 30`` keeps everything small for a first try.
+heatmap per direction and of the baseline next to the data. An error answer of the service stops it with
+the problem's title, detail and field errors (`MetairlError`). ``--size 30`` keeps everything small for a
+first try.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
-import json
 import os
 import sys
-import time
-from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-import httpx
+from metairl_client import Client, JobState, MetairlError
 
 PLATE = {"x_min": -0.2, "x_max": 0.2, "y_min": -0.2, "y_max": 0.2}
 """The force plate's rectangle in metres (the synthetic patient's; use your plate's)."""
 
 SESSIONS = ("unstimulated", "stimulated")
-TERMINAL = {"succeeded", "failed", "cancelled"}
 
 
 def write_patient_csv(folder: Path, *, size: int, seed: int) -> list[Path]:
@@ -57,110 +56,61 @@ def write_patient_csv(folder: Path, *, size: int, seed: int) -> list[Path]:
     return [*written, ideal]
 
 
-def ok(response: httpx.Response) -> Any:
-    """The JSON of a successful response; otherwise stop with the problem document."""
-    if response.is_error:
-        sys.exit(
-            f"{response.request.method} {response.request.url} → {response.status_code}\n{response.text}"
-        )
-    return response.json()
-
-
-def upload_session(api: httpx.Client, path: Path, *, mdp_id: str, name: str) -> dict[str, Any]:
+def upload_session(lab: Client, path: Path, *, mdp_id: str, name: str) -> dict[str, Any]:
     """Create a demonstrator for one session and upload its recording; returns the recording summary."""
-    dem = ok(
-        api.post("/v1/demonstrators", json={"name": f"patient 1, {name}", "metadata": {"session": name}})
-    )
-    with path.open("rb") as handle:
-        recording = ok(
-            api.post(
-                f"/v1/demonstrators/{dem['id']}/recordings",
-                files={"file": (path.name, handle, "text/csv")},
-                data={"mdp_id": mdp_id, "bounds": json.dumps(PLATE), "name": name},
-            )
-        )
+    demonstrator_id = lab.create_demonstrator(name=f"patient 1, {name}", metadata={"session": name})
+    recording = lab.upload_recording(demonstrator_id, path, mdp_id=mdp_id, bounds=PLATE, name=name)
     print(f"{name}: {recording['n_samples']} samples, segments {recording['segments']}")
     return recording
 
 
-def wait(api: httpx.Client, job_id: str, *, poll_s: float = 5.0) -> dict[str, Any]:
-    """Poll a job until it is finished, printing its progress."""
-    while True:
-        job = ok(api.get(f"/v1/jobs/{job_id}"))
-        progress = job.get("progress") or {}
-        print(f"  {job_id}: {job['status']} step {progress.get('step')} loss {progress.get('loss')}")
-        if job["status"] in TERMINAL:
-            return job
-        time.sleep(poll_s)
-
-
-def run(api: httpx.Client, data: Path, *, size: int, config: dict[str, Any]) -> None:
+def run(lab: Client, data: Path, *, size: int, config: dict[str, Any]) -> None:
     """The whole tutorial: MDP, demonstrators, recordings, true rewards, jobs, rewards and comparisons."""
     ideal = [float(row["reward"]) for row in csv.DictReader((data / "ideal_reward.csv").open())]
-    mdp = ok(
-        api.post(
-            "/v1/mdps",
-            json={
-                "kind": "grid",
-                "name": "force plate",
-                "width": size,
-                "height": size,
-                "velocity": True,
-                "gamma": 0.9,
-            },
-        )
+    mdp_id = lab.create_mdp(
+        {"kind": "grid", "name": "force plate", "width": size, "height": size, "velocity": True, "gamma": 0.9}
     )
-    print(f"MDP {mdp['id']}: {mdp['n_states']} states × {mdp['n_actions']} actions")
+    mdp = lab.get_mdp(mdp_id)
+    print(f"MDP {mdp_id}: {mdp['n_states']} states × {mdp['n_actions']} actions")
     jobs = {}
     for name in SESSIONS:
-        recording = upload_session(api, data / f"{name}.csv", mdp_id=mdp["id"], name=name)
+        recording = upload_session(lab, data / f"{name}.csv", mdp_id=mdp_id, name=name)
         labels = {t["task_id"]: t["label"] for t in recording["tasks"]}
         for task_id in labels:  # the ideal reward as each task's "truth": truth_pearson is Table I's number
-            ok(api.put(f"/v1/tasks/{task_id}/true-reward", json={"values": ideal}))
-        job = ok(
-            api.post("/v1/jobs", json={"demonstrator_id": recording["demonstrator_id"], "config": config})
-        )
-        jobs[name] = (job["id"], labels)
+            lab.put_true_reward(task_id, ideal)
+        job = lab.submit_job(recording["demonstrator_id"], config=config)
+        jobs[name] = (job.id, labels)
     for name, (job_id, labels) in jobs.items():
-        job = wait(api, job_id)
-        if job["status"] != "succeeded":
-            print(f"{name}: job {job['status']}: {job.get('error')}")
+        job = lab.wait(job_id)
+        if job.status != "succeeded":
+            print(f"{name}: job {job.status}: {job.error}")
             continue
-        print_table_row(api, data, name=name, job=job, labels=labels, ideal=ideal)
+        print_table_row(lab, data, name=name, job=job, labels=labels, ideal=ideal)
 
 
-def pearson_with(api: httpx.Client, reward_id: str, values: list[float]) -> tuple[float, float]:
+def pearson_with(lab: Client, reward_id: str, values: list[float]) -> tuple[float, float]:
     """Pearson of a reward with ``values`` on the states its demonstrations visit, and on all states."""
-
-    def compare(states: str) -> float:
-        body = {"a": {"reward_id": reward_id}, "b": {"values": values}, "states": states}
-        return float(ok(api.post("/v1/comparisons", json=body))["pearson"])
-
-    return compare("visited"), compare("all")
+    visited = float(lab.compare(reward_id, values, states="visited")["pearson"])
+    return visited, float(lab.compare(reward_id, values, states="all")["pearson"])
 
 
 def print_table_row(
-    api: httpx.Client,
-    data: Path,
-    *,
-    name: str,
-    job: dict[str, Any],
-    labels: dict[str, str],
-    ideal: list[float],
+    lab: Client, data: Path, *, name: str, job: JobState, labels: dict[str, str], ideal: list[float]
 ) -> None:
     """Print a session's Table I row (visited / all states) and its fit time; save a heatmap per reward."""
-    started, finished = (datetime.fromisoformat(job[k]) for k in ("started_at", "finished_at"))
-    steps = job["progress"]["step"]
-    print(f"\n{name}: fit in {(finished - started).total_seconds():.0f} s ({steps} steps)")
+    assert job.started_at is not None and job.finished_at is not None
+    print(f"\n{name}: fit in {(job.finished_at - job.started_at).total_seconds():.0f} s ({job.step} steps)")
     print(f"  Pearson with the ideal reward on {'visited states':>14s} / all states")
-    rewards = ok(api.get(f"/v1/jobs/{job['id']}/rewards"))
-    named = [(labels[t["task_id"]], t["reward_id"]) for t in rewards["tasks"]]
-    for label, reward_id in [*named, ("origin", rewards["baseline"]["reward_id"])]:
-        visited, everywhere = pearson_with(api, reward_id, ideal)
+    rewards = lab.job_rewards(job.id)
+    named = [(labels[task_id], reward_id) for task_id, reward_id in rewards.tasks.items()]
+    for label, reward_id in [*named, ("origin", rewards.baseline)]:
+        visited, everywhere = pearson_with(lab, reward_id, ideal)
         print(f"  {label:15s} {visited:+.3f} / {everywhere:+.3f}")
-        png = api.get(f"/v1/rewards/{reward_id}", params={"format": "png"})
-        if png.is_success:
-            (data / f"{name}-{label.replace(' ', '-')}.png").write_bytes(png.content)
+        try:
+            png = lab.reward_png(reward_id)
+        except MetairlError:
+            continue
+        (data / f"{name}-{label.replace(' ', '-')}.png").write_bytes(png)
 
 
 def main() -> None:
@@ -187,8 +137,11 @@ def main() -> None:
     if not args.key:
         sys.exit("give --key or set METAIRL_API_KEY (scripts/serve.sh prints one)")
     config: dict[str, Any] = {"sharing": "huber"} | ({"max_steps": args.max_steps} if args.max_steps else {})
-    with httpx.Client(base_url=args.url, headers={"Authorization": f"Bearer {args.key}"}, timeout=300) as api:
-        run(api, args.data, size=args.size, config=config)
+    try:
+        with Client(args.url, args.key, timeout_s=300) as lab:
+            run(lab, args.data, size=args.size, config=config)
+    except MetairlError as error:
+        sys.exit(str(error))
 
 
 if __name__ == "__main__":

@@ -40,7 +40,7 @@ class LossModule(torch.nn.Module):
         self.problem, self.vr, self.base, self.config = problem, vr, base, config
 
     def forward(self) -> torch.Tensor:
-        f, r_b = self.vr(self.problem.inputs_u), self.base(self.problem.inputs_base)[0]
+        f, r_b = self.vr(self.problem.inputs_u), self.base(self.problem.inputs_base)
         return objective(self.problem, f, r_b, self.config)[0]
 
 
@@ -49,7 +49,7 @@ def test_loss_gradient_matches_finite_differences_in_float64(sharing: str) -> No
     mdp = small_grid(size=3)
     reward = bump_reward(3)
     tasks = [task(mdp, soft_demos(mdp, reward, starts=np.array([0, 4]), length=3, seed=s)) for s in (0, 1)]
-    config = FitConfig(sharing=sharing, backup="logsumexp", hidden=(4,), holdout_fraction=0.0)  # type: ignore[arg-type]
+    config = FitConfig(sharing=sharing, backup="logsumexp", hidden=(4,), holdout_fraction=0.0, ensemble=1)  # type: ignore[arg-type]
     problem = _Problem(tasks, config)
     problem.inputs_u, problem.inputs_base = problem.inputs_u.double(), problem.inputs_base.double()
     problem.gamma = problem.gamma.double()
@@ -207,7 +207,7 @@ def test_bad_trajectories_are_rejected_with_task_and_step() -> None:
 @pytest.mark.parametrize("sharing", ["none", "huber"])
 def test_chunked_gradient_step_equals_the_direct_one(sharing: str) -> None:
     tasks, _ = terrain_tasks(seed=0, n_tasks=3, n_demos=2)
-    config = FitConfig(sharing=sharing)  # type: ignore[arg-type]
+    config = FitConfig(sharing=sharing, ensemble=1)  # type: ignore[arg-type]
     problem = _Problem(tasks, config)
     grads = []
     for chunk in (10_000, 7):

@@ -73,3 +73,14 @@ def test_metrics_import_without_torch() -> None:
     code = "import sys, metairl_engine, metairl_engine.metrics, metairl_engine.terrain; print('torch' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
+
+
+def test_correlations_of_finite_values_near_the_float64_limits_are_finite() -> None:
+    huge = np.array([1e308] * 12 + [-1e308] * 13)
+    ramp = np.arange(25.0)
+    for a, b in ((huge, ramp), (ramp * 1e-310, huge), (huge, -huge)):
+        r, rho = pearson(a, b), spearman(a, b)
+        assert np.isfinite(r) and np.isfinite(rho), (a, b)
+        expected = np.corrcoef(a / np.abs(a).max(), b / np.abs(b).max())[0, 1]
+        assert abs(r - expected) < 1e-9
+    assert pearson(huge, -huge) == -1.0 and np.isfinite(epic_distance(huge, ramp))

@@ -6,10 +6,12 @@ import pytest
 from metairl_engine import InvalidInput, validate_trajectories
 from metairl_engine.grids import DIRECTION_NAMES, DIRECTIONS, grid_mdp, velocity_coords, velocity_state
 from metairl_engine.motion import (
+    NO_INSTRUCTION,
     Bounds,
     DiscretiseSettings,
     Recording,
     SegmentSettings,
+    canonical_instruction,
     demonstrations,
     discretise,
     segment,
@@ -79,6 +81,55 @@ def test_several_problems_are_reported_together_in_sample_order() -> None:
     with pytest.raises(InvalidInput) as exc:
         Recording.build(t=[0, 1, 1, 3], x=[1, 1, 1, 11], y=[np.nan, 1, 1, 1], bounds=PLATE)
     assert pointers(exc) == ["/samples/0/y", "/samples/2/t", "/samples/3/x"]
+
+
+@pytest.mark.parametrize(
+    "spelling",
+    [
+        "forward left",
+        "forward_left",
+        "forward-left",
+        "Forward Left",
+        "FORWARD_LEFT",
+        " Forward-left ",
+        "forward  left",
+    ],
+)
+def test_usual_spellings_of_an_instruction_are_accepted(spelling: str) -> None:
+    rec = through_cells([(0, 0), (1, 0)], instruction=[spelling, "backward_right"])
+    assert rec.instruction is not None and rec.instruction.tolist() == ["forward left", "backward right"]
+
+
+@pytest.mark.parametrize("rest", ["rest", "Rest", "none", "None", "", "  ", None, "NaN"])
+def test_usual_spellings_of_rest_mean_no_instruction(rest: str | None) -> None:
+    rec = through_cells([(0, 0), (1, 0)], instruction=[rest, "left"])
+    assert rec.instruction is not None and rec.instruction.tolist() == [NO_INSTRUCTION, "left"]
+
+
+def test_canonical_instruction() -> None:
+    assert canonical_instruction("Backward_Right") == "backward right"
+    assert canonical_instruction(np.str_("forward-left")) == "forward left"
+    assert canonical_instruction(None) == canonical_instruction(float("nan")) == NO_INSTRUCTION
+    assert canonical_instruction("sideways") == "sideways"  # unknown names are the caller's check
+
+
+def test_instruction_errors_come_in_sample_order_without_numpy_reprs() -> None:
+    with pytest.raises(InvalidInput) as exc:
+        Recording.build(
+            t=[0, 1, 2, 3, 4],
+            x=[1, 1, 1, 11, 1],
+            y=[1, 1, 1, 1, 1],
+            bounds=PLATE,
+            instruction=np.array(["left", "zz_backward", "left", "backward_leftt", "aa"]),
+        )
+    assert pointers(exc) == [
+        "/samples/1/instruction",
+        "/samples/3/x",
+        "/samples/3/instruction",
+        "/samples/4/instruction",
+    ]
+    text = str(exc.value)
+    assert "np.str_" not in text and "'zz_backward'" in text and "'backward_leftt'" in text
 
 
 def test_empty_plate_bounds_are_rejected() -> None:

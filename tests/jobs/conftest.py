@@ -3,7 +3,7 @@
 Backends: ``embedded`` (SQLite file + Celery ``filesystem://`` broker, what ``metairl serve`` runs),
 ``redis_pg`` (the machine's PostgreSQL + Redis, what docker-compose runs) and ``rabbitmq_pg`` (PostgreSQL +
 the machine's RabbitMQ). Workers are real processes
-started with ``python -m service.cli worker`` (the ``metairl worker`` command) in their own process group,
+started with ``python -m metairl_cli.main worker`` (the ``metairl worker`` command) in their own process group,
 and are always killed in teardown. Heartbeats, the reaper and the stale cutoff are shortened by settings.
 """
 
@@ -25,9 +25,9 @@ import pytest
 from fastapi.testclient import TestClient
 from psycopg import sql
 
-from service.app import create_app
-from service.broker import delete_queue
-from service.keys import create_key
+from metairl_cli.keys import create_key
+from service.api.app import create_app
+from service.jobs.broker import delete_queue
 from service.settings import Settings
 from tests.conftest import POSTGRES_ADMIN
 
@@ -66,7 +66,7 @@ class Workers:
         log = self.logs / f"worker-{len(self.running)}-{secrets.token_hex(3)}.log"
         with open(log, "wb") as out:
             process = subprocess.Popen(
-                [sys.executable, "-m", "service.cli", "worker", "--concurrency", "1"],
+                [sys.executable, "-m", "metairl_cli.main", "worker", "--concurrency", "1"],
                 cwd=REPO,
                 env=settings_environment(self.settings),
                 stdout=out,

@@ -9,9 +9,10 @@ from typing import Any
 from fastapi.testclient import TestClient
 from sqlalchemy.orm import Session, sessionmaker
 
-from service.jobsubmit import create_job
-from service.models.demonstrators import Demonstrator
-from service.schemas.jobs import JobIn
+from service.api.schemas.jobs import JobIn
+from service.jobs.submit import create_job
+from service.settings import Settings
+from service.store.models.demonstrators import Demonstrator
 from tests.service.helpers import add_demonstrations, created, make_demonstrator, make_mdp, make_task
 
 QUICK: dict[str, Any] = {"max_steps": 30, "hidden": [8], "tolerance": 0, "patience": 0}
@@ -84,7 +85,9 @@ def unsent_job(make_session: sessionmaker[Session], demonstrator_id: str, config
     with make_session() as session:
         lab_id = session.get_one(Demonstrator, demonstrator_id).lab_id
         body = JobIn(demonstrator_id=demonstrator_id, config=config)
-        return create_job(session, lab_id=lab_id, body=body, max_attempts=3).id
+        job_id = create_job(session, lab_id=lab_id, body=body, settings=Settings(job_max_attempts=3)).id
+        session.commit()
+        return job_id
 
 
 def wait_for(

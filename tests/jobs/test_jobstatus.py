@@ -1,10 +1,10 @@
-"""The job lifecycle table: exactly the transitions of API.md §5 (plus the reaper's and the broker's edges)."""
+"""The job lifecycle table: exactly the transitions of docs/api.md, "Jobs" (plus the reaper's and the broker's edges)."""
 
 from __future__ import annotations
 
 import pytest
 
-from service.jobstatus import IllegalTransition, JobStatus
+from service.jobs.status import IllegalTransition, JobStatus
 
 Q, R, S, F, C = (
     JobStatus.QUEUED,

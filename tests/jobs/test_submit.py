@@ -12,7 +12,7 @@ from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
 from metairl_engine.config import FitConfig
-from service.queue import CeleryJobQueue
+from service.jobs.queue import CeleryJobQueue
 from service.settings import Settings
 from tests.jobs.helpers import QUICK, demonstrated_tasks, submit
 from tests.service.helpers import add_demonstrations, make_demonstrator, make_mdp, make_task

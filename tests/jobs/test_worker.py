@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 from sqlalchemy import func, select
 
-from service.ids import new_id
-from service.jobstatus import JobStatus
-from service.models.base import utcnow
-from service.models.demonstrators import Task
-from service.models.jobs import Job, Reward
-from service.queue import CeleryJobQueue
+from service.jobs.queue import CeleryJobQueue
+from service.jobs.status import JobStatus
+from service.store.ids import new_id
+from service.store.models.base import utcnow
+from service.store.models.demonstrators import Task
+from service.store.models.jobs import Job, Reward
 from tests.jobs.conftest import REPO, Stack, settings_environment
 from tests.jobs.helpers import (
     ENDLESS,

@@ -8,12 +8,16 @@ import numpy as np
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
-from service.jobstatus import JobStatus
-from service.jobstore import add_reward
-from service.models.jobs import Job
+from service.jobs.rewards import add_reward
+from service.jobs.status import JobStatus
+from service.store.models.jobs import Job
 
 CORRIDOR_NEXT_STATE = [[0, 1], [0, 2], [1, 2]]
 """A 3-state corridor: action 0 steps left, action 1 steps right (walls keep you in place)."""
+
+
+PUBLIC_HOOK = "https://93.184.215.14/metairl-hook"
+"""A webhook URL on a public address (an IP, so no name lookup is needed to accept it)."""
 
 
 def created(response: Any, status: int = 201) -> dict[str, Any]:
@@ -104,6 +108,8 @@ def owned_resource_ids(app: FastAPI, client: TestClient, auth: dict[str, str]) -
         client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
     )["id"]
     ids["reward_id"] = store_reward(app, job_id=ids["job_id"], shape={"n_states": 3, "n_actions": 2})
+    ids["recording_id"] = make_recording(client, auth, make_demonstrator(client, auth)["id"])["id"]
+    ids["webhook_id"] = created(client.post("/v1/webhooks", json={"url": PUBLIC_HOOK}, headers=auth))["id"]
     return ids
 
 
@@ -147,6 +153,7 @@ def fitted_job(
     demonstrations: dict[str, list[dict[str, list[int]]]],
     rewards: np.ndarray,
     demonstrator: str = "patient 1",
+    config: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """A demonstrator with one task per `demonstrations` entry (name → trajectories) in `mdp`, and a job over
     them marked succeeded with ``rewards[0]`` as baseline and ``rewards[1:]`` as task rewards (no worker).
@@ -167,7 +174,9 @@ def fitted_job(
         task_ids.append(task["id"])
     job = created(
         client.post(
-            "/v1/jobs", json={"demonstrator_id": demonstrator_id, "task_ids": task_ids}, headers=auth
+            "/v1/jobs",
+            json={"demonstrator_id": demonstrator_id, "task_ids": task_ids, "config": config},
+            headers=auth,
         ),
         202,
     )
@@ -180,3 +189,69 @@ def fitted_job(
         "job_id": job["id"],
         "reward_ids": reward_ids,
     }
+
+
+PLATE = {"x_min": -0.2, "x_max": 0.2, "y_min": -0.2, "y_max": 0.2}
+"""A 40 cm force plate centred on 0 (metres)."""
+UNIT = {
+    "forward": (0.0, 1.0),
+    "forward right": (0.7071, 0.7071),
+    "right": (1.0, 0.0),
+    "backward right": (0.7071, -0.7071),
+    "backward": (0.0, -1.0),
+    "backward left": (-0.7071, -0.7071),
+    "left": (-1.0, 0.0),
+    "forward left": (-0.7071, 0.7071),
+}
+
+
+def cop_rows(
+    reach: dict[str, float], *, repetitions: int = 3, rate: float = 50.0, seed: int = 0
+) -> list[dict[str, Any]]:
+    """Hand-made COP samples: per direction (name: peak distance in metres) `repetitions` out-and-back
+    movements (0.6 s rest at the centre without instruction, then 1.2 s out and back along the direction with
+    a raised-cosine profile, instructed), slightly jittered in reach and sideways."""
+    rng = np.random.default_rng(seed)
+    rows: list[dict[str, Any]] = []
+    t = 0.0
+    for name, distance in reach.items():
+        ux, uy = UNIT[name]
+        for _ in range(repetitions):
+            for _ in range(round(0.6 * rate)):
+                rows.append({"t": round(t, 4), "x": 0.0, "y": 0.0, "instruction": "rest"})
+                t += 1 / rate
+            peak = distance * (1 + 0.05 * rng.standard_normal())
+            side = 0.004 * rng.standard_normal()
+            n = round(1.2 * rate)
+            for k in range(n):
+                a = peak * 0.5 * (1 - np.cos(2 * np.pi * k / n))
+                s = side * np.sin(np.pi * k / n)
+                rows.append(
+                    {
+                        "t": round(t, 4),
+                        "x": float(a * ux - s * uy),
+                        "y": float(a * uy + s * ux),
+                        "instruction": name,
+                    }
+                )
+                t += 1 / rate
+    for _ in range(round(0.6 * rate)):
+        rows.append({"t": round(t, 4), "x": 0.0, "y": 0.0, "instruction": "rest"})
+        t += 1 / rate
+    return rows
+
+
+def make_recording(
+    client: TestClient,
+    auth: dict[str, str],
+    demonstrator_id: str,
+    reach: dict[str, float] | None = None,
+    **options: Any,
+) -> dict[str, Any]:
+    """Upload `cop_rows(reach)` (default: forward and left, 0.12 m) onto a 10×10 velocity grid; the recording."""
+    body = {
+        "bounds": PLATE,
+        "grid": {"width": 10, "height": 10, "gamma": 0.9},
+        "samples": cop_rows(reach or {"forward": 0.12, "left": 0.12}, **options),
+    }
+    return created(client.post(f"/v1/demonstrators/{demonstrator_id}/recordings", json=body, headers=auth))

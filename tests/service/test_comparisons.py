@@ -1,4 +1,4 @@
-"""Comparisons (API.md §7): metrics against scipy on all and visited states, across jobs and demonstrators,
+"""Comparisons (docs/api.md, "Comparisons and key states"): metrics against scipy on all and visited states, across jobs and demonstrators,
 field-naming 422s, the comparison matrix and key states. Results are stored without a worker (`fitted_job`)."""
 
 from __future__ import annotations
@@ -16,7 +16,8 @@ from fastapi.testclient import TestClient
 from PIL import Image
 from scipy.stats import pearsonr, spearmanr
 
-from service.render import matrix_pixel_size, matrix_png
+from metairl_client import Client
+from service.files.images import matrix_pixel_size, matrix_png
 from tests.service.helpers import created, fitted_job, make_task
 from tests.service.test_rewards import N_STATES, RIGHT, UP, WIDTH, grid, random_rewards
 
@@ -281,10 +282,111 @@ def test_compare_sessions_example_pairs_baselines_and_same_named_tasks(
     script = load_example("compare_sessions")
     client.headers.update(auth)
     off, on = sessions
-    rows = script.compare_sessions(client, off["job_id"], on["job_id"])
+    lab = Client(client)  # the lab client around the test app's httpx client
+    rows = script.compare_sessions(lab, off["job_id"], on["job_id"])
     assert [row["label"] for row in rows] == ["baseline", "walk right", "walk up"]
     for index, row in enumerate(rows):
         x, y = off["rewards"][index].astype(np.float64), on["rewards"][index].astype(np.float64)
         assert row["pearson"] == pytest.approx(pearsonr(x, y)[0], abs=1e-9)
-    paths = script.save_matrices(client, [off["job_id"], on["job_id"]], tmp_path)
+    paths = script.save_matrices(lab, [off["job_id"], on["job_id"]], tmp_path)
     assert [Image.open(p).size for p in paths] == [matrix_pixel_size(n=3)] * 2
+
+
+def test_finite_values_near_the_float64_limits_give_finite_correlations(
+    client: TestClient, auth: dict[str, str], sessions: list[dict[str, Any]]
+) -> None:
+    huge = [1e308] * (N_STATES // 2) + [-1e308] * (N_STATES - N_STATES // 2)
+    out = compare(client, auth, {"a": {"reward_id": sessions[0]["reward_ids"][1]}, "b": {"values": huge}})
+    assert out["pearson"] is not None and out["spearman"] is not None
+    assert abs(out["pearson"] - pearsonr(sessions[0]["rewards"][1], np.sign(huge)).statistic) < 1e-6
+
+
+# ---------------------------------------------------------------- distances that know the dynamics
+
+
+def test_dynamics_epic_and_starc_match_the_engine_and_see_a_permutation(
+    client: TestClient, auth: dict[str, str], sessions: list[dict[str, Any]], mdp: dict[str, Any]
+) -> None:
+    from metairl_engine.distances import distances
+    from metairl_engine.grids import grid_mdp
+    from metairl_engine.planning import transition_matrix
+
+    first = sessions[0]
+    x = first["rewards"][1].astype(np.float64)
+    reward = {"reward_id": first["reward_ids"][1]}
+    same = compare(client, auth, {"a": reward, "b": {"values": (3 * x + 7).tolist()}})["dynamics"]
+    assert same["epic"] == pytest.approx(0, abs=1e-6) and same["starc"] == pytest.approx(0, abs=1e-6)
+    assert (same["mdp_id"], same["gamma"], same["weights"], same["n_bootstrap"]) == (
+        mdp["id"],
+        0.9,
+        "uniform",
+        0,
+    )
+    assert same["epic_interval"] is None and same["starc_interval"] is None
+
+    permuted = x[np.random.default_rng(0).permutation(x.size)]
+    far = compare(client, auth, {"a": reward, "b": {"values": permuted.tolist()}, "bootstrap": 100})[
+        "dynamics"
+    ]
+    engine = grid_mdp(width=WIDTH, height=N_STATES // WIDTH, moves=4, gamma=0.9)
+    expected = distances(
+        x,
+        permuted,
+        transitions=transition_matrix(engine),
+        gamma=0.9,
+        n_actions=engine.n_actions,
+        bootstrap=100,
+    )
+    assert far["epic"] == pytest.approx(expected.epic, abs=1e-6) and far["epic"] > 0.2
+    assert far["starc"] == pytest.approx(expected.starc, abs=1e-6) and far["starc"] > 0.2
+    assert far["epic_interval"]["low"] <= far["epic"] <= far["epic_interval"]["high"]
+    assert far["starc_interval"]["low"] <= far["starc"] <= far["starc_interval"]["high"]
+    assert far["n_bootstrap"] == 100
+    opposite = compare(client, auth, {"a": reward, "b": {"values": (-x).tolist()}})["dynamics"]
+    assert opposite["epic"] == pytest.approx(1.0, abs=1e-6)
+
+
+def test_occupancy_weights_count_the_demonstrated_states(
+    client: TestClient, auth: dict[str, str], sessions: list[dict[str, Any]]
+) -> None:
+    first = sessions[0]
+    x = first["rewards"][1].astype(np.float64)
+    y = x.copy()
+    shown = visited(RIGHT)
+    y[~shown] = np.random.default_rng(1).normal(size=int((~shown).sum()))  # differs only where nobody went
+    body = {"a": {"reward_id": first["reward_ids"][1]}, "b": {"values": y.tolist()}}
+    uniform = compare(client, auth, body)["dynamics"]
+    occupancy = compare(client, auth, body | {"weights": "occupancy"})["dynamics"]
+    assert occupancy["weights"] == "occupancy" and occupancy["epic"] < uniform["epic"]
+    visited_only = compare(client, auth, body | {"weights": "occupancy", "states": "visited"})
+    assert visited_only["dynamics"]["epic"] == pytest.approx(occupancy["epic"], abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("extra", "pointer"), [({"weights": "softmax"}, "/weights"), ({"bootstrap": 5000}, "/bootstrap")]
+)
+def test_bad_weighting_or_bootstrap_is_a_422_naming_it(
+    client: TestClient,
+    auth: dict[str, str],
+    sessions: list[dict[str, Any]],
+    extra: dict[str, Any],
+    pointer: str,
+) -> None:
+    body = {"a": {"reward_id": sessions[0]["reward_ids"][1]}, "b": {"values": [0.0] * N_STATES}} | extra
+    problem = compare(client, auth, body, status=422)
+    assert pointer in [e["pointer"] for e in problem["errors"]]
+
+
+def test_comparison_matrix_has_the_dynamics_epic(
+    client: TestClient, auth: dict[str, str], sessions: list[dict[str, Any]]
+) -> None:
+    matrix = created(client.get(f"/v1/jobs/{sessions[0]['job_id']}/comparison-matrix", headers=auth), 200)
+    epic = np.array(matrix["epic"])
+    assert epic.shape == (3, 3) and np.allclose(np.diag(epic), 0) and np.allclose(epic, epic.T)
+    assert ((epic[~np.eye(3, dtype=bool)] > 0) & (epic[~np.eye(3, dtype=bool)] <= 1)).all()
+    baseline_vs_task = compare(
+        client,
+        auth,
+        {"a": {"reward_id": sessions[0]["reward_ids"][0]}, "b": {"reward_id": sessions[0]["reward_ids"][1]}},
+    )
+    assert epic[0, 1] == pytest.approx(baseline_vs_task["dynamics"]["epic"], abs=1e-9)

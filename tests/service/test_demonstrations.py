@@ -6,7 +6,7 @@ import pytest
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
-from service.inputs import load_trajectories
+from service.store.loaders import load_trajectories
 from tests.service.helpers import add_demonstrations, created, make_task
 
 
@@ -22,7 +22,7 @@ def test_json_trajectories_are_appended_and_counted(
 ) -> None:
     task = make_task(client, auth)
     first = add_demonstrations(client, auth, task["id"])
-    assert first["id"].startswith("demo_") and (
+    assert first["id"].startswith("trj_") and (
         first["n_trajectories"],
         first["n_steps"],
         first["format"],
@@ -116,6 +116,7 @@ def test_csv_upload_with_final_state_and_shuffled_rows(
             "CSV line 2",
         ),
         ("trajectory,step,state,action\n", "/trajectories", "no data rows"),
+        ("trajectory,step,state,action\nA,0,0,1\nA,1,1,1,7\nA,2,2,\n", "", "CSV line 3: has 5 cells"),
     ],
 )
 def test_invalid_csv_is_422_with_its_line(
@@ -127,3 +128,9 @@ def test_invalid_csv_is_422_with_its_line(
     assert any(e["pointer"] == pointer and words in e["message"] for e in response.json()["errors"]), (
         response.json()
     )
+
+
+def test_csv_trailing_empty_cells_are_not_extra_cells(client: TestClient, auth: dict[str, str]) -> None:
+    task = make_task(client, auth)
+    response = post_csv(client, auth, task["id"], "trajectory,step,state,action\nA,0,0,1,\nA,1,1,,\n")
+    assert response.status_code == 201, response.text

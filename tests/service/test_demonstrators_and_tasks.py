@@ -6,7 +6,7 @@ import pytest
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
-from service.inputs import load_true_reward
+from service.store.loaders import load_true_reward
 from tests.service.helpers import created, make_demonstrator, make_mdp, make_task
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from metairl_engine.mdp import Layout
-from service.exports import (
+from service.files.exports import (
     download_filename,
     etag_for,
     grid_coordinates,

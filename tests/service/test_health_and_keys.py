@@ -9,10 +9,13 @@ from pathlib import Path
 
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
-from sqlalchemy import create_engine, select
+from sqlalchemy import create_engine, event, select, update
+from sqlalchemy.orm import sessionmaker
 
-from service.models.labs import ApiKey
+from service.api.auth import Caller, KeyCache
 from service.settings import Settings
+from service.store.models.base import utcnow
+from service.store.models.labs import ApiKey
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -64,7 +67,7 @@ def test_keys_create_command_prints_a_working_key_on_its_last_line(
         "METAIRL_DATABASE_URL": settings.resolved_database_url,
     }
     done = subprocess.run(
-        [sys.executable, "-m", "service.cli", "keys", "create", "--lab", "cli lab"],
+        [sys.executable, "-m", "metairl_cli.main", "keys", "create", "--lab", "cli lab"],
         cwd=REPO,
         env=env,
         capture_output=True,
@@ -78,6 +81,72 @@ def test_keys_create_command_prints_a_working_key_on_its_last_line(
 
 
 def test_importing_the_app_does_not_import_torch() -> None:
-    code = "import sys, service.app, service.inputs, service.keys; print('torch' in sys.modules)"
+    code = "import sys, service.api.app, service.store.loaders, service.store.keys; print('torch' in sys.modules)"
     done = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "False"
+
+
+def test_a_confirmed_key_is_cached_for_the_ttl_and_a_revoked_key_refused_after_it(
+    app: FastAPI, client: TestClient, api_key: str
+) -> None:
+    now = [1000.0]
+    app.state.key_cache = KeyCache(5.0, clock=lambda: now[0])
+    statements: list[str] = []
+    event.listen(app.state.engine, "before_cursor_execute", lambda *a: statements.append(a[2]))
+    auth = {"Authorization": f"Bearer {api_key}"}
+    assert client.get("/v1/mdps", headers=auth).status_code == 200
+    assert any("api_keys" in s for s in statements)  # the key was looked up
+    statements.clear()
+    assert client.get("/v1/mdps", headers=auth).status_code == 200
+    assert statements and not any("api_keys" in s for s in statements)  # the key lookup was skipped
+
+    with app.state.sessionmaker() as session:
+        session.execute(update(ApiKey).where(ApiKey.id == api_key.split("_")[1]).values(revoked_at=utcnow()))
+        session.commit()
+    now[0] += 4.9
+    assert client.get("/v1/mdps", headers=auth).status_code == 200  # within the TTL
+    now[0] += 0.2
+    assert client.get("/v1/mdps", headers=auth).status_code == 401  # revoked, and asked again
+    assert client.get("/v1/mdps", headers=auth).status_code == 401  # refusals are never cached
+
+
+def test_the_key_cache_is_bounded_and_off_at_zero() -> None:
+    caller = Caller(id="lab_1", name="one")
+    off = KeyCache(0)
+    off.put("k", caller)
+    assert off.get("k") is None
+    now = [0.0]
+    small = KeyCache(10, max_entries=3, clock=lambda: now[0])
+    for key in ("a", "b", "c", "d"):
+        small.put(key, caller)
+    assert [small.get(k) for k in "abcd"] == [None, caller, caller, caller]
+    now[0] = 10.0
+    assert small.get("d") is None
+
+
+def test_a_lost_database_is_a_503_problem_to_retry(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    app.state.sessionmaker = sessionmaker(create_engine("postgresql+psycopg://nobody@127.0.0.1:1/none"))
+    response = client.get("/v1/mdps", headers=auth)
+    assert response.status_code == 503 and response.headers["Retry-After"] == "1"
+    assert response.headers["content-type"].startswith("application/problem+json")
+    assert response.json()["title"] == "Database unavailable"
+
+
+def test_the_api_process_imports_only_what_it_serves(app: FastAPI, settings: Settings) -> None:
+    """Building the app on a migrated database loads neither torch nor scipy, matplotlib, Alembic or Celery
+    (comparisons, heatmaps, migrations and job submission import theirs when first used)."""
+    heavy = ("torch", "scipy", "matplotlib", "alembic", "celery")
+    code = (
+        "import sys; from service.api.app import create_app; create_app()\n"
+        f"print(sorted(m for m in {heavy!r} if m in sys.modules))"
+    )
+    env = os.environ | {
+        "METAIRL_DATABASE_URL": settings.resolved_database_url,
+        "METAIRL_DATA_DIR": str(settings.data_dir),
+    }
+    done = subprocess.run(
+        [sys.executable, "-c", code], cwd=REPO, env=env, capture_output=True, text=True, check=True
+    )
+    assert done.stdout.strip() == "[]", done.stderr

@@ -6,8 +6,8 @@ import secrets
 
 from fastapi.testclient import TestClient
 
-from service.app import create_app
-from service.keys import create_key
+from metairl_cli.keys import create_key
+from service.api.app import create_app
 from service.settings import Settings
 from tests.service.helpers import CORRIDOR_NEXT_STATE, make_task
 

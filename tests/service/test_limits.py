@@ -8,8 +8,8 @@ from collections.abc import Iterator
 import pytest
 from fastapi.testclient import TestClient
 
-from service.app import create_app
-from service.keys import create_key
+from metairl_cli.keys import create_key
+from service.api.app import create_app
 from service.settings import Settings
 
 

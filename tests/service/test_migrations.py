@@ -8,11 +8,12 @@ import threading
 from alembic import command
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
+from alembic.script import ScriptDirectory
 from sqlalchemy import inspect
 
-import service.models
-from service.db import alembic_config, make_engine, migrate
+import service.store.models
 from service.settings import Settings
+from service.store.db import alembic_config, head_revision, is_current, make_engine, migrate
 
 
 def test_migrations_match_the_models(settings: Settings) -> None:
@@ -20,7 +21,7 @@ def test_migrations_match_the_models(settings: Settings) -> None:
     migrate(engine)
     with engine.connect() as connection:
         context = MigrationContext.configure(connection, opts={"compare_type": True})
-        diff = compare_metadata(context, service.models.Base.metadata)
+        diff = compare_metadata(context, service.store.models.Base.metadata)
     engine.dispose()
     assert diff == []
 
@@ -56,3 +57,21 @@ def test_processes_starting_together_all_migrate(empty_database_url: str) -> Non
     assert "mdps" in inspect(engines[0]).get_table_names()
     for engine in engines:
         engine.dispose()
+
+
+def test_the_head_read_from_the_files_is_alembics_and_a_current_database_is_left_alone(
+    empty_database_url: str,
+) -> None:
+    """`migrate` skips Alembic when the database is stamped with the head it reads from the migration files."""
+    engine = make_engine(Settings(database_url=empty_database_url))
+    with engine.connect() as connection:
+        assert head_revision() == ScriptDirectory.from_config(alembic_config(connection)).get_current_head()
+    assert not is_current(engine)
+    migrate(engine)
+    assert is_current(engine)
+    with engine.begin() as connection:
+        command.downgrade(alembic_config(connection), "-1")
+    assert not is_current(engine)
+    migrate(engine)
+    assert is_current(engine)
+    engine.dispose()

@@ -18,10 +18,10 @@ from fastapi.testclient import TestClient
 
 from metairl_engine.motion import DiscretiseSettings, Recording, demonstrations
 from metairl_engine.patient import PatientSettings, simulate_patient
-from service.crud.tasks import create_task
-from service.inputs import load_trajectories
-from service.models.demonstrators import Demonstrator
-from service.recordings import lock_demonstrator
+from service.store.loaders import load_trajectories
+from service.store.models.demonstrators import Demonstrator
+from service.store.recordings import lock_demonstrator
+from service.store.tasks import create_task
 from tests.service.helpers import created, make_demonstrator, make_mdp
 
 REPO = Path(__file__).resolve().parents[2]
@@ -138,9 +138,10 @@ def test_concurrent_uploads_with_a_new_label_join_one_task(
         upload.start()
         upload.join(timeout=1.0)
         assert upload.is_alive(), "the second upload did not wait for the demonstrator's lock"
-        forward = create_task(  # commits, which releases the lock
+        forward = create_task(
             first, first.get_one(Demonstrator, dem["id"]), name="forward", mdp_id=mdp_id, metadata=None
         )
+        first.commit()  # releases the lock
     upload.join(timeout=30)
     out = created(responses[0])
     joined = {t["label"]: (t["task_id"], t["created"]) for t in out["tasks"]}
@@ -275,11 +276,12 @@ def test_another_lab_gets_404(
 
 def test_cutting_a_recording_never_imports_torch() -> None:
     code = (
-        "import sys, numpy as np; import service.recordings as r; from service.schemas.recordings import RecordingIn\n"
+        "import sys, numpy as np; import service.store.recordings as r; from service.api.schemas.recordings import RecordingIn\n"
+        "from service.files.recording_samples import json_samples\n"
         "t = np.arange(0, 8, 0.01); x = 0.15 * np.sin(np.pi * t / 2).clip(0) ** 2\n"
         "body = RecordingIn.model_validate({'bounds': {'x_min': -0.2, 'x_max': 0.2, 'y_min': -0.2, 'y_max': 0.2},"
         " 'samples': [{'t': a, 'x': b, 'y': 0.0} for a, b in zip(t.tolist(), x.tolist())]})\n"
-        "s = r.json_samples(body)\n"
+        "s = json_samples(body)\n"
         "cut = r.demonstrations(r.Recording.build(t=s.t, x=s.x, y=s.y, bounds=body.bounds),"
         " discretise_settings=r.DiscretiseSettings(width=20, height=20), segment_settings=body.segment)\n"
         "print(sorted(cut.by_label), 'torch' in sys.modules)"

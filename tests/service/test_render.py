@@ -12,7 +12,7 @@ from PIL import Image
 
 from metairl_engine.grids import DIRECTION_NAMES, velocity_state
 from metairl_engine.mdp import Layout
-from service.render import (
+from service.files.images import (
     heatmap_figure,
     heatmap_pixel_size,
     heatmap_png,
@@ -38,7 +38,7 @@ def points(line: Line2D) -> list[list[float]]:
 
 
 def test_importing_render_imports_neither_matplotlib_nor_torch() -> None:
-    code = "import sys, service.render; print(sorted({'matplotlib', 'torch'} & set(sys.modules)))"
+    code = "import sys, service.files.images; print(sorted({'matplotlib', 'torch'} & set(sys.modules)))"
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
 

@@ -1,4 +1,4 @@
-"""A job's rewards (API.md §6): the listing with statistics and truth scores, and every download format.
+"""A job's rewards (docs/api.md, "Rewards"): the listing with statistics and truth scores, and every download format.
 
 Results are written straight to the database (`fitted_job`), so no worker is needed.
 """
@@ -15,9 +15,12 @@ from fastapi import FastAPI
 from fastapi.testclient import TestClient
 from PIL import Image
 from scipy.stats import pearsonr
+from sqlalchemy import event
 
 from metairl_engine.mdp import Layout
-from service.render import heatmap_pixel_size, heatmap_png
+from service.files.images import heatmap_pixel_size, heatmap_png
+from service.jobs.rewards import download, reward_context
+from service.store.models.jobs import Reward
 from tests.service.helpers import add_demonstrations, created, fitted_job, make_mdp, make_task
 
 WIDTH, HEIGHT = 5, 4
@@ -185,6 +188,41 @@ def test_velocity_grid_png_has_a_panel_per_direction(
     assert eight == (4 * 300 + 100, 2 * 325 + 75)  # 2 rows × 4 panels and the colour bar, at 100 dpi
 
 
+def test_the_baseline_says_how_to_read_it_where_that_needs_saying(
+    app: FastAPI, client: TestClient, auth: dict[str, str], job: dict[str, Any]
+) -> None:
+    def baseline(job_id: str) -> dict[str, Any]:
+        response = client.get(f"/v1/jobs/{job_id}/rewards", headers=auth)
+        assert response.status_code == 200, response.text
+        listing = response.json()
+        assert all(task["note"] is None for task in listing["tasks"])
+        return listing["baseline"]
+
+    assert baseline(job["job_id"])["note"] is None
+    unshared = fitted_job(
+        app,
+        client,
+        auth,
+        mdp=grid(client, auth),
+        demonstrations={"walk right": RIGHT},
+        rewards=random_rewards(2, N_STATES),
+        demonstrator="alone",
+        config={"sharing": "none"},
+    )
+    assert "mean of the task rewards" in baseline(unshared["job_id"])["note"]
+    velocity = grid(client, auth, width=3, height=3, moves=8, velocity=True)
+    moving = fitted_job(
+        app,
+        client,
+        auth,
+        mdp=velocity,
+        demonstrations={"diagonal": [{"states": [0, 1 * 9 + 4, 1 * 9 + 8], "actions": [1, 1]}]},
+        rewards=random_rewards(2, 72),
+        demonstrator="on a plate",
+    )
+    assert "Out-and-back movements" in baseline(moving["job_id"])["note"]
+
+
 def test_etag_gives_304_and_differs_per_variant(
     client: TestClient, auth: dict[str, str], job: dict[str, Any]
 ) -> None:
@@ -261,3 +299,64 @@ def test_bad_parameters_are_422_naming_them(
     )
     assert policy_png.status_code == 409 and "policy" in policy_png.json()["detail"]
     assert client.get("/v1/rewards/rwd_nope", headers=auth).status_code == 404
+
+
+def test_npy_and_json_come_from_one_query_with_the_same_answers_as_the_general_path(
+    app: FastAPI, client: TestClient, auth: dict[str, str], auth_b: dict[str, str], job: dict[str, Any]
+) -> None:
+    """npy and json are served from the stored bytes in one statement (besides the API-key check); the bytes,
+    ETag and file name equal those of `service.jobs.rewards.download`, which builds them from the loaded array."""
+    statements: list[str] = []
+
+    def note(*args: Any) -> None:
+        if "api_keys" not in args[2]:  # the key check runs in its own short session, before the route
+            statements.append(args[2])
+
+    event.listen(app.state.engine, "before_cursor_execute", note)
+    with app.state.sessionmaker() as session:
+        lab_id = session.get_one(Reward, job["reward_ids"][0]).lab_id
+    for reward_id in job["reward_ids"]:
+        for fmt in ("npy", "json"):
+            for quantity in ("reward", "value", "policy"):
+                statements.clear()
+                response = get_raw(client, auth, reward_id, format=fmt, quantity=quantity)
+                if reward_id == job["reward_ids"][0] and quantity != "reward":
+                    assert response.status_code == 409 and "baseline" in response.json()["detail"]
+                    continue
+                assert response.status_code == 200 and len(statements) == 1, statements
+                with app.state.sessionmaker() as session:
+                    ctx = reward_context(session, reward_id, lab_id=lab_id)
+                    general = download(
+                        session, ctx, fmt=fmt, quantity=quantity, overlay="none", if_none_match=None
+                    )
+                assert response.content == general.content
+                assert response.headers["ETag"] == general.etag
+                assert general.filename in response.headers["Content-Disposition"]
+                statements.clear()
+                again = get_raw(
+                    client,
+                    auth,
+                    reward_id,
+                    format=fmt,
+                    quantity=quantity,
+                    headers={"If-None-Match": str(general.etag)},
+                )
+                assert (again.status_code, again.content, len(statements)) == (304, b"", 1)
+                stale = get_raw(
+                    client, auth, reward_id, format=fmt, quantity=quantity, headers={"If-None-Match": '"x"'}
+                )
+                assert stale.status_code == 200 and stale.content == response.content
+    other_lab = get_raw(client, auth_b, job["reward_ids"][1], format="npy")
+    missing = get_raw(client, auth, "rwd_nope", format="npy")
+    assert other_lab.status_code == missing.status_code == 404
+
+
+def get_raw(
+    client: TestClient,
+    auth: dict[str, str],
+    reward_id: str,
+    headers: dict[str, str] | None = None,
+    **params: Any,
+) -> Any:
+    """The response of a download, whatever its status."""
+    return client.get(f"/v1/rewards/{reward_id}", params=params, headers=auth | (headers or {}))

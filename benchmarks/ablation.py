@@ -1,0 +1,155 @@
+"""Ablation: each candidate change to the default config, measured one by one on BOTH terrain generators.
+
+The setting is the one issue 13 targets: 8 tasks × 3 demonstrations, goal state excluded, 10 worlds of the
+repo's generator (`metairl_engine/terrain.py`, tuned on) and of the frozen one (`frozen_terrain.py`, never
+tuned on). A variant is a named set of FitConfig overrides; every fit is cached in `ablation_results.json`
+so a rerun only computes what is missing. Usage::
+
+    .venv/bin/python benchmarks/ablation.py                      # every variant, both generators
+    .venv/bin/python benchmarks/ablation.py --variants default none
+    .venv/bin/python benchmarks/ablation.py --table               # print the table from the cache only
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+sys.path.insert(0, str(HERE))
+
+from accuracy import run_one, world_and_tasks  # noqa: E402
+from frozen_terrain import frozen_world_and_tasks  # noqa: E402
+
+from metairl_engine import FitConfig  # noqa: E402
+from metairl_engine.terrain import SimTask, World  # noqa: E402
+
+GENERATORS: dict[str, Callable[[int], tuple[World, list[SimTask]]]] = {
+    "repo": world_and_tasks,
+    "frozen": frozen_world_and_tasks,
+}
+
+VARIANTS: dict[str, dict[str, Any]] = {
+    # The config as it was before issue 13 (Huber sharing, weight 1, one network per task, one seed).
+    "paper-huber": {"sharing": "huber"},
+    "none": {"sharing": "none"},
+    "l2": {"sharing": "l2"},
+    "std": {"sharing": "std"},
+    "huber-ens1": {"sharing": "huber", "ensemble": 1},
+    "huber-ens2": {"sharing": "huber", "ensemble": 2},
+    "huber-ens3": {"sharing": "huber", "ensemble": 3},
+    "huber-ens4": {"sharing": "huber", "ensemble": 4},
+    "l2-ens4": {"sharing": "l2", "ensemble": 4},
+    "none-ens4": {"sharing": "none", "ensemble": 4},
+    "huber-fourier3": {"sharing": "huber", "fourier_octaves": 3},
+    "huber-fourier2": {"sharing": "huber", "fourier_octaves": 2},
+    "huber-ens4-narrow": {"sharing": "huber", "ensemble": 4, "hidden": (64, 32, 16)},
+    "huber-narrow": {"sharing": "huber", "hidden": (64, 32, 16)},
+    "default": {},
+}
+"""Named FitConfig overrides; ``default`` is whatever FitConfig() is at the time of the run."""
+
+
+def config_of(variant: str) -> FitConfig:
+    """The FitConfig a variant names (today's defaults plus its overrides)."""
+    return replace(FitConfig(), **VARIANTS[variant])
+
+
+REVISION = "rev2"
+"""The engine's behaviour beyond its config: bump it (and relabel the cache's rows) when the fit changes.
+rev1: stopping on the plain held-out NLL; rev2: on the calibrated held-out NLL (fit.calibrated_nll)."""
+
+
+def key_of(variant: str) -> str:
+    """Cache key of a variant: the engine revision and its full config, so no stale row is ever reused."""
+    return f"{REVISION}:" + json.dumps(config_of(variant).to_dict(), sort_keys=True)
+
+
+def table(rows: list[dict[str, Any]], labels: list[str]) -> str:
+    """Markdown: per label, task-reward Pearson (goal excluded) mean ± std over worlds on each generator."""
+    lines = [
+        "| variant | repo generator | frozen generator | baseline vs −cost (repo / frozen) | CPU s/fit (repo / frozen) |",
+        "| --- | --- | --- | --- | --- |",
+    ]
+    for v in labels:
+        cells, base, secs = [], [], []
+        for g in GENERATORS:
+            sel = [r for r in rows if r["variant"] == v and r["generator"] == g]
+            if not sel:
+                cells.append("—")
+                base.append("—")
+                secs.append("—")
+                continue
+            tp = np.array([r["task_pearson"] for r in sel])
+            cells.append(f"{tp.mean():.3f} ± {tp.std():.3f} (n={len(sel)})")
+            base.append(f"{np.mean([r['baseline_pearson'] for r in sel]):.3f}")
+            secs.append(f"{np.mean([r.get('cpu_seconds', r['seconds']) for r in sel]):.1f}")
+        lines.append(f"| {v} | {cells[0]} | {cells[1]} | {' / '.join(base)} | {' / '.join(secs)} |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    """Run what is missing from the cache, then print the table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--variants", nargs="*", default=list(VARIANTS), choices=list(VARIANTS))
+    parser.add_argument("--generators", nargs="*", default=list(GENERATORS), choices=list(GENERATORS))
+    parser.add_argument("--worlds", type=int, default=10)
+    parser.add_argument("--tasks", type=int, default=8)
+    parser.add_argument("--demos", type=int, default=3)
+    parser.add_argument("--table", action="store_true", help="only print the table from the cache")
+    parser.add_argument(
+        "--all", action="store_true", help="table of every label in the cache, earlier revisions too"
+    )
+    parser.add_argument("--cache", type=Path, default=HERE / "ablation_results.json")
+    args = parser.parse_args()
+
+    import torch
+
+    torch.set_num_threads(1)
+    rows: list[dict[str, Any]] = json.loads(args.cache.read_text()) if args.cache.exists() else []
+    setting = {"tasks": args.tasks, "demos": args.demos}
+    done = {
+        (r["generator"], r["config_key"], r["world"])
+        for r in rows
+        if r["tasks"] == args.tasks and r["demos"] == args.demos
+    }
+    todo = [
+        (g, v, w)
+        for v in args.variants
+        for g in args.generators
+        for w in range(args.worlds)
+        if (g, key_of(v), w) not in done and not args.table
+    ]
+    worlds: dict[tuple[str, int], tuple[World, list[SimTask]]] = {}
+    for g, v, w in tqdm(todo, desc="fits"):
+        if (g, w) not in worlds:
+            worlds[g, w] = GENERATORS[g](w)
+        world, sims = worlds[g, w]
+        out = run_one(world, sims, n_tasks=args.tasks, n_demos=args.demos, config=config_of(v))
+        rows.append({"generator": g, "variant": v, "config_key": key_of(v), "world": w, **setting, **out})
+        args.cache.write_text(json.dumps(rows, indent=0))
+    current = {key_of(v) for v in args.variants}
+    wanted = [
+        r
+        for r in rows
+        if r["tasks"] == args.tasks
+        and r["demos"] == args.demos
+        and r["world"] < args.worlds
+        and (args.all or r["config_key"] in current)
+    ]
+    labels = list(dict.fromkeys(r["variant"] for r in wanted))
+    print(f"{args.tasks} tasks × {args.demos} demonstrations, {args.worlds} worlds, goal state excluded")
+    print(table(wanted, labels))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,57 @@
+"""CPU seconds per default fit (8 tasks × 3 demonstrations) on worlds of both terrain generators.
+
+Times `fit(…, FitConfig())` of whatever engine is importable, so the same command compares engines: run it
+in this checkout and in a checkout of an earlier commit, one after the other, on a quiet machine::
+
+    .venv/bin/python benchmarks/fit_time.py --repo 3 --frozen 2
+    git worktree add ../before 9038d98 && cd ../before && bash scripts/bootstrap.sh && \\
+        .venv/bin/python ../<this checkout>/benchmarks/fit_time.py --repo 3 --frozen 2
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import metairl_engine  # first, from the checkout that runs this (accuracy.py puts its own root on sys.path)
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+import torch  # noqa: E402
+from accuracy import world_and_tasks  # noqa: E402
+from frozen_terrain import frozen_world_and_tasks  # noqa: E402
+
+from metairl_engine import FitConfig  # noqa: E402
+from metairl_engine.fit import fit  # noqa: E402
+from metairl_engine.results import TaskData  # noqa: E402
+
+
+def main() -> None:
+    """Time one default fit per world and print a row each (CPU s, wall s, steps)."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repo", type=int, default=3, help="worlds 0 … N−1 of the repo's generator")
+    parser.add_argument("--frozen", type=int, default=2, help="worlds 0 … N−1 of the frozen generator")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    print(f"engine: {Path(metairl_engine.__file__).parent}")
+    for name, make, count in (
+        ("repo", world_and_tasks, args.repo),
+        ("frozen", frozen_world_and_tasks, args.frozen),
+    ):
+        for w in range(count):
+            world, sims = make(w)
+            tasks = [TaskData(world.mdp, s.trajectories[:3], s.name) for s in sims[:8]]
+            cpu, wall = time.process_time(), time.perf_counter()
+            result = fit(tasks, FitConfig())
+            print(
+                f"{name} world {w}: {time.process_time() - cpu:.1f} CPU s, "
+                f"{time.perf_counter() - wall:.1f} s, {len(result.history)} steps",
+                flush=True,
+            )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,194 @@
+"""Reward distances that know the dynamics: EPIC and STARC under an MDP's transitions and discount.
+
+numpy/scipy only (never torch): the API process computes comparisons with these functions.
+
+Two rewards that differ by potential shaping, ``R'(s, a, s') = R(s, a, s') + γ Φ(s') − Φ(s)``, make every
+policy equally good; a distance between rewards should not see that difference. Rewards here are of a
+state, ``r(s)`` (shape ``(S,)``, what a fit learns), or of a state and action in the expected-next-state
+form, ``R(s, a) = E[R(s, a, S') | S' ~ T(s, a)]`` (shape ``(S, A)``). A state reward is the (s, a) reward
+``R(s, a) = r(s)``; shaping in that form is ``R + γ T Φ − Φ``, i.e. ``R(s, a) + γ Σ T(s'|s,a) Φ(s') − Φ(s)``.
+
+**Canonicalisation** (`canonicalise`) removes the shaping exactly: of all rewards shaping-equivalent to R
+it takes the one of least norm under the state–action weights D, ``C(R) = R − G Φ*`` with
+``G Φ = γ T Φ − Φ`` and ``Φ* = argmin_Φ ‖R − G Φ‖_D`` (a sparse S×S least-squares solve). So
+``C(R + G Φ) = C(R)`` for every Φ; constants are shaping too (Φ = −c / (1 − γ)), so C is shift-invariant.
+
+- **EPIC** (Gleave et al. 2021) with dynamics: the Pearson distance ``sqrt((1 − ρ_D(C(Ra), C(Rb))) / 2)`` in
+  [0, 1] of the canonical rewards under D — 0 for rewards equal up to shaping and positive scale.
+- **STARC** (Skalse et al. 2024): ``‖C(Ra)/‖C(Ra)‖_D − C(Rb)/‖C(Rb)‖_D‖_D / 2`` in [0, 1], the same
+  canonicalisation followed by normalisation (a reward that is all shaping normalises to 0).
+
+D is a weighting of states (``uniform``, or the demonstrations' occupancy) times a uniform choice of
+action. `bootstrap` gives percentile intervals by resampling the weighted states with replacement (the
+canonical rewards held fixed).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import spsolve
+
+from metairl_engine.metrics import unit_scale
+
+RIDGE = 1e-12
+"""Relative ridge of the least-squares solve: pins Φ on states of weight 0, negligible elsewhere."""
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A bootstrap percentile interval."""
+
+    low: float
+    high: float
+
+
+@dataclass(frozen=True)
+class Distances:
+    """EPIC and STARC distances of two rewards under one MDP and weighting, with optional intervals."""
+
+    epic: float
+    starc: float
+    epic_interval: Interval | None
+    starc_interval: Interval | None
+    n_bootstrap: int
+
+
+def shaping_operator(transitions: sp.spmatrix, gamma: float, n_actions: int) -> sp.csr_matrix:
+    """G, the (S·A, S) matrix of ``Φ ↦ γ (T Φ)(s, a) − Φ(s)``; ``transitions`` is T as (S·A, S), row s·A + a."""
+    n_states = transitions.shape[1]
+    repeat = sp.kron(sp.identity(n_states, format="csr"), np.ones((n_actions, 1)), format="csr")
+    return (gamma * sp.csr_matrix(transitions) - repeat).tocsr()
+
+
+def as_state_action(reward: np.ndarray, n_states: int, n_actions: int) -> np.ndarray:
+    """A state reward (S,) or an (S, A) reward as the flat (S·A,) vector of R(s, a)."""
+    r = np.asarray(reward, dtype=np.float64)
+    if r.shape == (n_states,):
+        return np.repeat(r, n_actions)
+    if r.shape == (n_states, n_actions) or r.shape == (n_states * n_actions,):
+        return r.reshape(-1)
+    raise ValueError(f"a reward must have shape ({n_states},) or ({n_states}, {n_actions}), got {r.shape}")
+
+
+def state_action_weights(state_weights: np.ndarray | None, n_states: int, n_actions: int) -> np.ndarray:
+    """D over (s, a), flat: the state weights (uniform if None) normalised, times 1/A per action."""
+    w = np.ones(n_states) if state_weights is None else np.asarray(state_weights, dtype=np.float64).ravel()
+    if w.shape != (n_states,) or np.any(w < 0) or not np.isfinite(w).all() or w.sum() <= 0:
+        raise ValueError("state weights must be finite, non-negative, one per state and not all zero")
+    return np.repeat(w / w.sum(), n_actions) / n_actions
+
+
+def canonicalise(reward: np.ndarray, shaping: sp.csr_matrix, weights: np.ndarray) -> np.ndarray:
+    """C(R) = R − G Φ*, Φ* minimising ‖R − G Φ‖ under ``weights``: the least-norm reward shaping-equivalent to R."""
+    r = np.asarray(reward, dtype=np.float64).ravel()
+    weighted = sp.diags(weights) @ shaping
+    normal = (shaping.T @ weighted).tocsc()
+    if np.any(weights <= 0):  # states of weight 0 leave Φ free there: pin it (to 0) by a tiny ridge
+        scale = float(normal.diagonal().mean()) or 1.0
+        normal = normal + RIDGE * scale * sp.identity(normal.shape[0], format="csc")
+    phi = spsolve(normal, shaping.T @ (weights * r))
+    return np.asarray(r - shaping @ phi)
+
+
+def _pearson(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> float:
+    """Weighted Pearson correlation; 0.0 when a side is constant where w > 0."""
+    w = w / w.sum()
+    dx, dy = x - w @ x, y - w @ y
+    vx, vy = w @ (dx * dx), w @ (dy * dy)
+    scale = max(float(np.max(np.abs(x))), float(np.max(np.abs(y))), 1e-300)
+    if vx <= (1e-12 * scale) ** 2 or vy <= (1e-12 * scale) ** 2:
+        return 0.0
+    return float(np.clip((w @ (dx * dy)) / np.sqrt(vx * vy), -1.0, 1.0))
+
+
+def _epic(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> float:
+    return float(np.sqrt(max(0.0, 1.0 - _pearson(x, y, w)) / 2.0))
+
+
+def _starc(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> float:
+    w = w / w.sum()
+
+    def unit(v: np.ndarray) -> np.ndarray:
+        norm = float(np.sqrt(w @ (v * v)))
+        scale = max(float(np.max(np.abs(v))), 1e-300)
+        return v / norm if norm > 1e-9 * scale else np.zeros_like(v)
+
+    d = unit(x) - unit(y)
+    return float(min(1.0, np.sqrt(w @ (d * d)) / 2.0))
+
+
+def distances(
+    a: np.ndarray,
+    b: np.ndarray,
+    *,
+    transitions: sp.spmatrix,
+    gamma: float,
+    n_actions: int,
+    state_weights: np.ndarray | None = None,
+    bootstrap: int = 0,
+    seed: int = 0,
+) -> Distances:
+    """EPIC and STARC distances of rewards ``a`` and ``b`` ((S,) or (S, A)) under the MDP's transitions
+    (T as (S·A, S)) and ``gamma``, states weighted by ``state_weights`` (uniform if None); with
+    ``bootstrap`` > 0, 95 % percentile intervals from that many resamplings of the weighted states."""
+    if not 0.0 <= gamma < 1.0:
+        raise ValueError(f"gamma must be in [0, 1), got {gamma}")
+    n_states = transitions.shape[1]
+    w = state_action_weights(state_weights, n_states, n_actions)
+    shaping = shaping_operator(transitions, gamma, n_actions)
+    # Both distances ignore positive scale: scaling to unit peak first keeps rewards near ±1e308 finite.
+    ca = canonicalise(unit_scale(as_state_action(a, n_states, n_actions)), shaping, w)
+    cb = canonicalise(unit_scale(as_state_action(b, n_states, n_actions)), shaping, w)
+    epic, starc = _epic(ca, cb, w), _starc(ca, cb, w)
+    if bootstrap <= 0:
+        return Distances(epic, starc, None, None, 0)
+    rng = np.random.default_rng(seed)
+    support = np.flatnonzero(w.reshape(n_states, n_actions).sum(axis=1) > 0)
+    samples = np.empty((bootstrap, 2))
+    for i in range(bootstrap):
+        counts = np.bincount(rng.choice(support, size=support.size), minlength=n_states)
+        wb = w * np.repeat(counts, n_actions)
+        samples[i] = _epic(ca, cb, wb), _starc(ca, cb, wb)
+    low, high = np.percentile(samples, [2.5, 97.5], axis=0)
+    return Distances(
+        epic,
+        starc,
+        Interval(float(low[0]), float(high[0])),
+        Interval(float(low[1]), float(high[1])),
+        bootstrap,
+    )
+
+
+def shaped(
+    reward: np.ndarray, potential: np.ndarray, *, transitions: sp.spmatrix, gamma: float, n_actions: int
+) -> np.ndarray:
+    """``reward`` shaped by ``potential`` in the expected-next-state form: (S, A) values of
+    ``R(s, a) + γ Σ_s' T(s'|s, a) Φ(s') − Φ(s)``."""
+    n_states = transitions.shape[1]
+    r = as_state_action(reward, n_states, n_actions)
+    out = r + shaping_operator(transitions, gamma, n_actions) @ np.asarray(potential, dtype=np.float64)
+    return np.asarray(out).reshape(n_states, n_actions)
+
+
+def pairwise_epic(
+    rewards: list[np.ndarray],
+    *,
+    transitions: sp.spmatrix,
+    gamma: float,
+    n_actions: int,
+    state_weights: np.ndarray | None = None,
+) -> np.ndarray:
+    """The symmetric matrix of EPIC distances (with dynamics) between every pair of ``rewards``
+    (each canonicalised once)."""
+    n_states = transitions.shape[1]
+    w = state_action_weights(state_weights, n_states, n_actions)
+    shaping = shaping_operator(transitions, gamma, n_actions)
+    canon = [canonicalise(as_state_action(r, n_states, n_actions), shaping, w) for r in rewards]
+    out = np.zeros((len(canon), len(canon)))
+    for i in range(len(canon)):
+        for j in range(i + 1, len(canon)):
+            out[i, j] = out[j, i] = _epic(canon[i], canon[j], w)
+    return out

@@ -1,0 +1,282 @@
+"""Kinematic readout of COP recordings: the descriptors posturography uses, per instructed direction.
+
+numpy only (scipy's peak finder through `motion.segment`; matplotlib only inside `comparison_png`). This is
+the readout a clinician checks the learned rewards against (docs/api.md, "Motion readout"): from the out-and-back movements that
+`motion.segment` finds, per movement
+
+- ``peak_reach``: the farthest the COP got along the instructed direction, from where the movement started;
+- ``path_length``: the length of the COP path from movement onset to its end (out and back);
+- ``deviation``: the mean distance of the COP from the instructed line (through the start, along the
+  instructed direction) from onset to end;
+- ``time_to_peak_s``: time from movement onset to the farthest point;
+- ``mean_speed``: path length over the movement's duration;
+
+all lengths in the units of the uploaded x, y, times in those of t. A movement starts where the COP rests
+before it (the mean of the segment's first ``rest_s``); its onset is the first sample farther from there than
+``onset_fraction`` of its peak distance, its end the last such sample. Per direction, every descriptor is
+summarised by its mean over repetitions with a 95 % percentile-bootstrap interval over repetitions (seeded);
+`compare` gives b minus a per direction with intervals from resampling both sides.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from metairl_engine.grids import DIRECTION_NAMES, DIRECTIONS
+from metairl_engine.motion import Recording, SegmentSettings, segment
+
+DESCRIPTORS = ("peak_reach", "path_length", "deviation", "time_to_peak_s", "mean_speed")
+"""Descriptor names, in the order the readout lists them (docs/api.md, "Motion readout")."""
+
+LENGTHS = frozenset({"peak_reach", "path_length", "deviation"})
+"""Descriptors in the units of x, y (``mean_speed`` is in those units per time unit, the others in time units)."""
+
+
+@dataclass(frozen=True)
+class KinematicSettings:
+    """How movements are measured (times in the recording's time unit)."""
+
+    smooth_s: float = 0.05
+    """Moving-average window applied to x and y first, so sensor noise does not inflate the path length."""
+    rest_s: float = 0.1
+    """The movement's start position is the mean COP over the segment's first ``rest_s``."""
+    onset_fraction: float = 0.1
+    """The movement runs while the COP is farther than this fraction of its peak distance from the start."""
+    n_boot: int = 2000
+    """Bootstrap resamples per interval."""
+    seed: int = 0
+    """Seed of the bootstrap: same recordings and seed, same intervals."""
+
+
+@dataclass(frozen=True)
+class Movement:
+    """One movement's descriptors (see the module docstring) and its label (a `DIRECTION_NAMES` entry)."""
+
+    direction: str
+    peak_reach: float
+    path_length: float
+    deviation: float
+    time_to_peak_s: float
+    mean_speed: float
+
+    def value(self, name: str) -> float:
+        """The descriptor ``name`` (one of `DESCRIPTORS`)."""
+        return float(getattr(self, name))
+
+
+def _unit(direction: str) -> np.ndarray:
+    d = DIRECTIONS[DIRECTION_NAMES.index(direction)].astype(np.float64)
+    return d / np.hypot(d[0], d[1])
+
+
+def _smooth(values: np.ndarray, window: int) -> np.ndarray:
+    """Centred moving average of odd length ``window`` (edges padded with the end values)."""
+    if window <= 1:
+        return values
+    padded = np.pad(values, window // 2, mode="edge")
+    return np.convolve(padded, np.full(window, 1.0 / window), mode="valid")
+
+
+def movements(
+    rec: Recording,
+    *,
+    segment_settings: SegmentSettings = SegmentSettings(),
+    settings: KinematicSettings = KinematicSettings(),
+) -> list[Movement]:
+    """The descriptors of every out-and-back movement `motion.segment` finds in ``rec``, in time order."""
+    rate = rec.sample_rate
+    window = max(round(settings.smooth_s * rate), 1) | 1
+    x, y = _smooth(rec.x, window), _smooth(rec.y, window)
+    out = []
+    for seg in segment(rec, segment_settings):
+        sl = slice(seg.start, seg.stop)
+        px, py, t = x[sl], y[sl], rec.t[sl]
+        rest = max(round(settings.rest_s * rate), 1)
+        ox, oy = float(px[:rest].mean()), float(py[:rest].mean())
+        dist = np.hypot(px - ox, py - oy)
+        peak = int(np.argmax(dist))
+        moving = np.flatnonzero(dist > settings.onset_fraction * dist[peak])
+        onset, end = (int(moving[0]), int(moving[-1])) if moving.size else (peak, peak)
+        unit = _unit(seg.label)
+        along = (px - ox) * unit[0] + (py - oy) * unit[1]
+        across = np.abs((px - ox) * unit[1] - (py - oy) * unit[0])
+        steps = np.hypot(np.diff(px[onset : end + 1]), np.diff(py[onset : end + 1]))
+        length = float(steps.sum())
+        duration = float(t[end] - t[onset])
+        out.append(
+            Movement(
+                direction=seg.label,
+                peak_reach=float(along.max()),
+                path_length=length,
+                deviation=float(across[onset : end + 1].mean()),
+                time_to_peak_s=float(t[int(np.argmax(along))] - t[onset]),
+                mean_speed=length / duration if duration > 0 else 0.0,
+            )
+        )
+    return out
+
+
+def _interval(values: np.ndarray, draws: np.ndarray) -> dict[str, float | None]:
+    """Mean and 95 % percentile-bootstrap interval of the mean; low/high None with fewer than 2 values."""
+    mean = float(values.mean())
+    if len(values) < 2:
+        return {"mean": mean, "low": None, "high": None}
+    low, high = np.percentile(values[draws].mean(axis=1), [2.5, 97.5])
+    return {"mean": mean, "low": float(low), "high": float(high)}
+
+
+def _by_direction(moves: Sequence[Movement]) -> dict[str, list[Movement]]:
+    """Movements grouped by direction, directions in `DIRECTION_NAMES` order."""
+    groups: dict[str, list[Movement]] = {}
+    for name in DIRECTION_NAMES:
+        found = [m for m in moves if m.direction == name]
+        if found:
+            groups[name] = found
+    return groups
+
+
+def summarise(moves: Sequence[Movement], settings: KinematicSettings = KinematicSettings()) -> dict[str, Any]:
+    """The motion summary without the route's fields: ``{"directions": [{"direction", "n_segments",
+    "peak_reach": {"mean", "low", "high"}, "path_length": …, "deviation": …, "time_to_peak_s": …,
+    "mean_speed": …}, …]}`` in `DIRECTION_NAMES` order, only directions with movements."""
+    rng = np.random.default_rng(settings.seed)
+    rows = []
+    for name, group in _by_direction(moves).items():
+        draws = rng.integers(0, len(group), size=(settings.n_boot, len(group)))
+        row: dict[str, Any] = {"direction": name, "n_segments": len(group)}
+        for d in DESCRIPTORS:
+            row[d] = _interval(np.array([m.value(d) for m in group]), draws)
+        rows.append(row)
+    return {"directions": rows}
+
+
+def motion_summary(
+    recordings: Sequence[Recording],
+    *,
+    segment_settings: SegmentSettings = SegmentSettings(),
+    settings: KinematicSettings = KinematicSettings(),
+) -> dict[str, Any]:
+    """The kinematic summary of a demonstrator's recordings (movements pooled over recordings): `summarise`
+    of `movements`. The route adds ``demonstrator_id`` and ``units``."""
+    moves = [
+        m for rec in recordings for m in movements(rec, segment_settings=segment_settings, settings=settings)
+    ]
+    return summarise(moves, settings)
+
+
+def compare(
+    a: Sequence[Movement], b: Sequence[Movement], settings: KinematicSettings = KinematicSettings()
+) -> dict[str, Any]:
+    """b minus a per direction and descriptor: ``{"directions": [{"direction", "n_a", "n_b",
+    "peak_reach_diff": {"mean", "low", "high"}, …}], "a": summarise(a), "b": summarise(b)}`` over the
+    directions both sides have; the interval resamples each side's repetitions independently."""
+    rng = np.random.default_rng(settings.seed)
+    groups_a, groups_b = _by_direction(a), _by_direction(b)
+    rows = []
+    for name in DIRECTION_NAMES:
+        if name not in groups_a or name not in groups_b:
+            continue
+        ga, gb = groups_a[name], groups_b[name]
+        draws_a = rng.integers(0, len(ga), size=(settings.n_boot, len(ga)))
+        draws_b = rng.integers(0, len(gb), size=(settings.n_boot, len(gb)))
+        row: dict[str, Any] = {"direction": name, "n_a": len(ga), "n_b": len(gb)}
+        for d in DESCRIPTORS:
+            va, vb = np.array([m.value(d) for m in ga]), np.array([m.value(d) for m in gb])
+            diff: dict[str, float | None] = {"mean": float(vb.mean() - va.mean()), "low": None, "high": None}
+            if len(va) > 1 or len(vb) > 1:
+                boot = vb[draws_b].mean(axis=1) - va[draws_a].mean(axis=1)
+                low, high = np.percentile(boot, [2.5, 97.5])
+                diff["low"], diff["high"] = float(low), float(high)
+            row[f"{d}_diff"] = diff
+        rows.append(row)
+    return {"directions": rows, "a": summarise(a, settings), "b": summarise(b, settings)}
+
+
+def compare_recordings(
+    a: Sequence[Recording],
+    b: Sequence[Recording],
+    *,
+    segment_settings: SegmentSettings = SegmentSettings(),
+    settings: KinematicSettings = KinematicSettings(),
+) -> dict[str, Any]:
+    """`compare` of the movements in two demonstrators' (or sessions') recordings."""
+
+    def moves(recs: Sequence[Recording]) -> list[Movement]:
+        return [
+            m for rec in recs for m in movements(rec, segment_settings=segment_settings, settings=settings)
+        ]
+
+    return compare(moves(a), moves(b), settings)
+
+
+LABELS = {
+    "peak_reach": "peak reach",
+    "path_length": "path length",
+    "deviation": "deviation from the line",
+    "time_to_peak_s": "time to peak",
+    "mean_speed": "mean speed",
+}
+
+
+def comparison_png(
+    comparison: dict[str, Any], *, names: tuple[str, str] = ("a", "b"), units: str = "", dpi: int = 100
+) -> bytes:
+    """One figure of a `compare` result: peak reach per direction of both sides on a polar plot (bands: 95 %
+    intervals), then one panel per descriptor with b − a per direction and its interval, red where the
+    interval excludes 0. matplotlib is imported here only, and drawn on an Agg canvas without pyplot (no global
+    backend, safe in a server thread)."""
+    import io
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.projections.polar import PolarAxes
+
+    unit = f" ({units})" if units else ""
+    fig = Figure(figsize=(15, 4.2), dpi=dpi)
+    FigureCanvasAgg(fig)
+    grid = fig.add_gridspec(1, 6, width_ratios=[1.6, 1, 1, 1, 1, 1], wspace=0.45)
+    polar = fig.add_subplot(grid[0, 0], projection="polar")
+    assert isinstance(polar, PolarAxes)
+    for side, name, colour in (("a", names[0], "tab:blue"), ("b", names[1], "tab:orange")):
+        rows = comparison[side]["directions"]
+        if not rows:
+            continue
+        angles = np.array([DIRECTION_NAMES.index(r["direction"]) * np.pi / 4 for r in rows])
+        reach = np.array([r["peak_reach"]["mean"] for r in rows])
+        low = np.array(
+            [r["peak_reach"]["low"] if r["peak_reach"]["low"] is not None else np.nan for r in rows]
+        )
+        high = np.array(
+            [r["peak_reach"]["high"] if r["peak_reach"]["high"] is not None else np.nan for r in rows]
+        )
+        closed = np.r_[angles, angles[:1]]
+        polar.plot(closed, np.r_[reach, reach[:1]], "o-", color=colour, label=name)
+        polar.fill_between(closed, np.r_[low, low[:1]], np.r_[high, high[:1]], color=colour, alpha=0.25)
+    polar.set_xticks(np.arange(8) * np.pi / 4, [n.replace(" ", "\n") for n in DIRECTION_NAMES], fontsize=7)
+    polar.set_rlabel_position(67.5)
+    polar.tick_params(axis="y", labelsize=6)
+    polar.set_title(f"peak reach{unit}", fontsize=10)
+    polar.legend(loc="lower left", bbox_to_anchor=(-0.25, -0.22), fontsize=8, ncol=2)
+    rows = comparison["directions"]
+    ypos = np.arange(len(rows))[::-1]
+    for k, d in enumerate(DESCRIPTORS):
+        ax = fig.add_subplot(grid[0, k + 1])
+        for yk, row in zip(ypos, rows, strict=True):
+            diff = row[f"{d}_diff"]
+            clear = diff["low"] is not None and (diff["low"] > 0 or diff["high"] < 0)
+            colour = "tab:red" if clear else "0.4"
+            if diff["low"] is not None:
+                ax.plot([diff["low"], diff["high"]], [yk, yk], color=colour, lw=2)
+            ax.plot(diff["mean"], yk, "o", color=colour)
+        ax.axvline(0.0, color="0.7", lw=1)
+        ax.set_yticks(ypos, [r["direction"] for r in rows] if k == 0 else [""] * len(rows), fontsize=8)
+        what = " (s)" if d == "time_to_peak_s" else unit if d in LENGTHS else f" ({units}/s)" if units else ""
+        ax.set_title(f"{LABELS[d]}{what}\n{names[1]} − {names[0]}", fontsize=9)
+        ax.tick_params(axis="x", labelsize=7)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", bbox_inches="tight")
+    return buffer.getvalue()

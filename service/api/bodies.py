@@ -1,0 +1,54 @@
+"""Reading request bodies that may be JSON or a multipart upload, with errors as problem+json."""
+
+from __future__ import annotations
+
+import json
+from typing import Any, TypeVar
+
+from fastapi import Request
+from pydantic import TypeAdapter, ValidationError
+from starlette.datastructures import FormData, UploadFile
+
+from service.problems import UnsupportedMediaType, not_utf8_json, validation_errors
+
+T = TypeVar("T")
+MAX_FORM_FIELDS = 50
+
+
+def media_type(request: Request) -> str:
+    """The request's media type without parameters, lower case."""
+    return request.headers.get("content-type", "").partition(";")[0].strip().lower()
+
+
+async def json_body(request: Request, adapter: TypeAdapter[T]) -> T:
+    """Parse and validate a JSON body; 422 with pointers into the body on any problem."""
+    raw = await request.body()
+    try:
+        return adapter.validate_json(raw)
+    except ValidationError as exc:
+        if any(e["type"] == "json_invalid" for e in exc.errors()):
+            try:
+                raw.decode("utf-8")
+            except UnicodeDecodeError:
+                raise not_utf8_json() from exc
+        try:
+            parsed: Any = json.loads(raw)
+        except ValueError:
+            parsed = None
+        raise validation_errors(exc.errors(include_url=False), parsed) from exc
+
+
+async def form_body(request: Request) -> tuple[FormData, UploadFile]:
+    """A multipart form and its single file (whatever the field's name); 422 if there is no file."""
+    form = await request.form(max_files=1, max_fields=MAX_FORM_FIELDS)
+    files = [v for v in form.values() if isinstance(v, UploadFile)]
+    if not files:
+        raise validation_errors([{"loc": ("file",), "msg": "a file part is required"}], None)
+    return form, files[0]
+
+
+def unsupported(request: Request, *, accepted: str) -> UnsupportedMediaType:
+    """415 for a body of a media type the endpoint does not take."""
+    return UnsupportedMediaType(
+        f"Content-Type {media_type(request) or '(none)'!r} is not accepted; send {accepted}."
+    )

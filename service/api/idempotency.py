@@ -1,0 +1,215 @@
+"""`Idempotency-Key` on POST as ASGI middleware: the same key and body (per lab, within the TTL) replays the
+first response and creates nothing; the same key with a different body is a 422; a key still running is a 409.
+
+The key is claimed (a row with no response yet) before the request runs, so two concurrent retries cannot
+both create; 5xx responses release the claim so the request can be retried.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from datetime import timedelta
+from typing import Any
+
+from sqlalchemy import delete, select
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session, sessionmaker
+from starlette.concurrency import run_in_threadpool
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from service.api.auth import lab_for_key
+from service.problems import ApiError, Conflict, Unprocessable, problem_response
+from service.settings import Settings
+from service.store.models.base import utcnow
+from service.store.models.idempotency import IdempotentRequest
+
+HEADER = b"idempotency-key"
+MAX_KEY_LENGTH = 255
+REPLAYED_HEADERS = {"content-type", "location"}
+
+
+def fingerprint(scope: Scope, body: bytes) -> str:
+    """SHA-256 of what makes two requests "the same": path, query, media type and body content.
+
+    JSON is compared by value (key order and spacing do not matter); a multipart body with its random
+    boundary removed.
+    """
+    headers = dict(scope["headers"])
+    media, _, params = headers.get(b"content-type", b"").partition(b";")
+    content = body
+    if media.strip() == b"application/json":
+        try:
+            content = json.dumps(json.loads(body), sort_keys=True, separators=(",", ":")).encode()
+        except ValueError:
+            content = body
+    elif b"boundary=" in params:
+        boundary = params.split(b"boundary=", 1)[1].split(b";")[0].strip(b' "')
+        content = body.replace(boundary, b"")
+    digest = hashlib.sha256()
+    for part in (scope["path"].encode(), scope.get("query_string", b""), media.strip(), content):
+        digest.update(len(part).to_bytes(8, "big") + part)
+    return digest.hexdigest()
+
+
+def _bearer_key(scope: Scope) -> str | None:
+    """The bearer token of the request, if any."""
+    value = dict(scope["headers"]).get(b"authorization", b"").decode("latin-1")
+    scheme, _, token = value.partition(" ")
+    return token.strip() if scheme.lower() == "bearer" and token.strip() else None
+
+
+class Idempotency:
+    """Replays POST responses by (lab, Idempotency-Key); requests without the header pass straight through."""
+
+    def __init__(self, app: ASGIApp, *, settings: Settings):
+        self.app = app
+        self.ttl = timedelta(seconds=settings.idempotency_ttl_s)
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        """Claim the key, run the request and store its response, or answer from the stored one."""
+        if scope["type"] != "http" or scope["method"] != "POST":
+            await self.app(scope, receive, send)
+            return
+        raw_key = dict(scope["headers"]).get(HEADER)
+        bearer = _bearer_key(scope)
+        if raw_key is None or bearer is None:
+            await self.app(scope, receive, send)
+            return
+        key = raw_key.decode("latin-1").strip()
+        makers: sessionmaker[Session] = scope["app"].state.sessionmaker
+        if not key or len(key) > MAX_KEY_LENGTH:
+            error = Unprocessable(
+                f"The Idempotency-Key header must be 1 to {MAX_KEY_LENGTH} characters.",
+                errors=[{"pointer": "", "parameter": "Idempotency-Key", "message": "has a bad length"}],
+            )
+            await problem_response(error)(scope, receive, send)
+            return
+        body = await _read_body(receive)
+        fp = fingerprint(scope, body)
+        outcome = await run_in_threadpool(self._claim, makers, bearer, key, fp)
+        if isinstance(outcome, ApiError):
+            await problem_response(outcome)(scope, receive, send)
+            return
+        if isinstance(outcome, IdempotentRequest):
+            await _replay(outcome, send)
+            return
+        if outcome is None:  # no valid key: let the route answer 401
+            await self.app(scope, _replaying_receive(body, receive), send)
+            return
+        lab_id = outcome
+        captured: dict[str, Any] = {"status": 500, "headers": [], "body": b""}
+
+        async def capturing_send(message: Message) -> None:
+            """Send the response on while keeping a copy of its status, headers and body."""
+            if message["type"] == "http.response.start":
+                captured["status"] = message["status"]
+                captured["headers"] = [
+                    [k.decode("latin-1"), v.decode("latin-1")]
+                    for k, v in message.get("headers", [])
+                    if k.decode("latin-1").lower() in REPLAYED_HEADERS
+                ]
+            elif message["type"] == "http.response.body":
+                captured["body"] += message.get("body", b"")
+            await send(message)
+
+        try:
+            await self.app(scope, _replaying_receive(body, receive), capturing_send)
+        finally:
+            await run_in_threadpool(self._finish, makers, lab_id, key, captured)
+
+    def _claim(
+        self, makers: sessionmaker[Session], bearer: str, key: str, fp: str
+    ) -> str | IdempotentRequest | ApiError | None:
+        """Claim `key` for this request: returns the lab id (go ahead), a finished row (replay), an error,
+        or None when the API key is not valid."""
+        with makers() as session:
+            lab = lab_for_key(session, bearer)
+            if lab is None:
+                return None
+            lab_id = lab.id
+            session.execute(
+                delete(IdempotentRequest).where(
+                    IdempotentRequest.lab_id == lab_id, IdempotentRequest.created_at < utcnow() - self.ttl
+                )
+            )
+            session.add(IdempotentRequest(lab_id=lab_id, key=key, fingerprint=fp))
+            try:
+                session.commit()
+                return lab_id
+            except IntegrityError:
+                session.rollback()
+            row = session.execute(
+                select(IdempotentRequest).where(
+                    IdempotentRequest.lab_id == lab_id, IdempotentRequest.key == key
+                )
+            ).scalar_one_or_none()
+        if row is None:
+            return Conflict("A request with this Idempotency-Key just finished failing; retry it.")
+        if row.fingerprint != fp:
+            return Unprocessable(
+                "This Idempotency-Key was used with a different request body or path; use a new key.",
+                errors=[
+                    {
+                        "pointer": "",
+                        "parameter": "Idempotency-Key",
+                        "message": "reused for a different request",
+                    }
+                ],
+            )
+        if row.status is None:
+            return Conflict("A request with this Idempotency-Key is still being processed; retry shortly.")
+        return row
+
+    @staticmethod
+    def _finish(makers: sessionmaker[Session], lab_id: str, key: str, captured: dict[str, Any]) -> None:
+        """Store the response for replay, or release the claim after a server error."""
+        with makers() as session:
+            row = session.get(IdempotentRequest, (lab_id, key))
+            if row is None:
+                return
+            if captured["status"] >= 500:
+                session.delete(row)
+            else:
+                row.status = captured["status"]
+                row.headers = captured["headers"]
+                row.body = captured["body"]
+            session.commit()
+
+
+async def _read_body(receive: Receive) -> bytes:
+    """The whole request body."""
+    chunks = []
+    while True:
+        message = await receive()
+        if message["type"] != "http.request":
+            break
+        chunks.append(message.get("body", b""))
+        if not message.get("more_body", False):
+            break
+    return b"".join(chunks)
+
+
+def _replaying_receive(body: bytes, receive: Receive) -> Receive:
+    """A `receive` that hands the already-read body to the app in one message, then defers to `receive`."""
+    sent = False
+
+    async def replaying() -> Message:
+        """The stored body first, then whatever the server sends (e.g. a disconnect)."""
+        nonlocal sent
+        if sent:
+            return await receive()
+        sent = True
+        return {"type": "http.request", "body": body, "more_body": False}
+
+    return replaying
+
+
+async def _replay(row: IdempotentRequest, send: Send) -> None:
+    """Send the stored response again, marked with ``Idempotent-Replayed: true``."""
+    headers = [(k.encode("latin-1"), v.encode("latin-1")) for k, v in row.headers or []]
+    headers.append((b"idempotent-replayed", b"true"))
+    body = row.body or b""
+    headers.append((b"content-length", str(len(body)).encode()))
+    await send({"type": "http.response.start", "status": row.status, "headers": headers})
+    await send({"type": "http.response.body", "body": body})

@@ -1,0 +1,1 @@
+"""HTTP routes, one module per resource: thin layers that call the data functions and commit."""

@@ -1,0 +1,243 @@
+"""`/v1/mdps`: create an MDP (explicit JSON, grid, or `.npz` upload), read its metadata, download its arrays."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Query, Request, Response, status
+from pydantic import TypeAdapter
+from starlette.concurrency import run_in_threadpool
+from starlette.datastructures import FormData, UploadFile
+
+from metairl_engine import MDP, Layout
+from service.api.auth import LabDep
+from service.api.bodies import form_body, json_body, media_type, unsupported
+from service.api.deps import SessionDep, SettingsDep
+from service.api.openapi import PROBLEM_RESPONSES, request_body
+from service.api.pagination import Page, PageDep
+from service.api.responses import DELETED
+from service.api.schemas.mdps import (
+    EXPLICIT_EXAMPLE,
+    GRID_EXAMPLE,
+    SPARSE_EXAMPLE,
+    ExplicitMdpIn,
+    GridMdpIn,
+    MdpIn,
+    MdpOut,
+)
+from service.files.npz import npz_headers, read_npz, write_npz
+from service.problems import Unprocessable
+from service.settings import Settings
+from service.sizes import check_mdp_size
+from service.store import mdps
+from service.store.deletion import delete_mdp as delete_mdp_rows
+from service.store.loaders import load_mdp
+
+router = APIRouter(tags=["mdps"], responses=PROBLEM_RESPONSES)
+MDP_IN: TypeAdapter[ExplicitMdpIn | GridMdpIn] = TypeAdapter(MdpIn)
+NPZ_ARRAYS = ("features", "next_state", "s", "a", "next", "p")
+NPZ_FORM = {
+    "type": "object",
+    "required": ["file", "name", "gamma"],
+    "properties": {
+        "file": {
+            "type": "string",
+            "format": "binary",
+            "description": f"mdp.npz with arrays {', '.join(NPZ_ARRAYS)}",
+        },
+        "name": {"type": "string"},
+        "gamma": {"type": "number"},
+        "n_states": {"type": "integer"},
+        "n_actions": {"type": "integer"},
+        "width": {"type": "integer", "description": "Layout width (with height)."},
+        "height": {"type": "integer"},
+        "channels": {"type": "integer", "default": 1},
+    },
+}
+
+
+@router.post(
+    "/mdps",
+    status_code=201,
+    summary="Create an MDP",
+    description="Send an explicit MDP or a grid as JSON, or upload `mdp.npz` as multipart/form-data. "
+    "Every array is validated (shapes, index ranges, probabilities summing to 1 per (s, a)).",
+    openapi_extra=request_body(
+        MdpIn,
+        json_examples={
+            "deterministic": {"summary": "Deterministic, tabular features", "value": EXPLICIT_EXAMPLE},
+            "sparse": {"summary": "Stochastic, with features", "value": SPARSE_EXAMPLE},
+            "grid": {"summary": "The paper's 100×100 velocity grid", "value": GRID_EXAMPLE},
+        },
+        multipart=NPZ_FORM,
+    ),
+)
+async def create_mdp(
+    request: Request, response: Response, lab: LabDep, session: SessionDep, settings: SettingsDep
+) -> MdpOut:
+    """Validate with the engine and store; the arrays are then downloadable from `/v1/mdps/{id}/arrays`.
+
+    Size limits (`METAIRL_MAX_STATE_ACTIONS`, `METAIRL_MAX_FEATURES`, `METAIRL_MAX_ARRAY_ELEMENTS`) are a 422
+    naming the setting; an `.npz` is checked from its members' headers before any array is read."""
+    kind = media_type(request)
+    if kind == "multipart/form-data":
+        form, upload = await form_body(request)
+        mdp = await run_in_threadpool(_mdp_from_upload, form, upload, settings)
+        created = await run_in_threadpool(
+            mdps.create_mdp, session, lab_id=lab.id, name=_form_name(form), source="npz", mdp=mdp
+        )
+    elif kind == "application/json":
+        body = await json_body(request, MDP_IN)
+        if isinstance(body, ExplicitMdpIn):
+            mdp = await run_in_threadpool(mdps.build_explicit, body)
+            grid = None
+        else:
+            mdp, grid = await run_in_threadpool(mdps.build_grid, body)
+        check_mdp_size(
+            mdp.n_states,
+            mdp.n_actions,
+            None if mdp.features is None else mdp.n_features,
+            settings,
+            pointer="",
+        )
+        created = await run_in_threadpool(
+            mdps.create_mdp, session, lab_id=lab.id, name=body.name, source=body.kind, mdp=mdp, grid=grid
+        )
+    else:
+        raise unsupported(request, accepted="application/json or multipart/form-data")
+    await run_in_threadpool(session.commit)
+    response.headers["Location"] = f"/v1/mdps/{created.id}"
+    return MdpOut.of(created, mdps.array_blobs(session, [created]))
+
+
+def _form_name(form: FormData) -> str:
+    """The `name` form field, checked like the JSON `name`."""
+    name = form.get("name")
+    if not isinstance(name, str) or not 1 <= len(name.strip()) <= 200:
+        raise Unprocessable(
+            "The form field name is required.",
+            errors=[{"pointer": "/name", "message": "is required (1 to 200 characters)"}],
+        )
+    return name.strip()
+
+
+def _form_number(form: FormData, field: str, kind: type[int] | type[float]) -> Any:
+    """An optional numeric form field, or None; 422 at /field if it is not a number of that kind."""
+    raw = form.get(field)
+    if raw is None or raw == "":
+        return None
+    try:
+        return kind(str(raw))
+    except ValueError as exc:
+        raise Unprocessable(
+            f"The form field {field} must be {'an integer' if kind is int else 'a number'}.",
+            errors=[
+                {
+                    "pointer": f"/{field}",
+                    "message": f"must be {'an integer' if kind is int else 'a number'}, got {raw!r}",
+                }
+            ],
+        ) from exc
+
+
+def _mdp_from_upload(form: FormData, upload: UploadFile, settings: Settings) -> MDP:
+    """The engine's MDP from an `.npz` upload and its form fields (raises 422 / `InvalidInput`); sizes are
+    checked from the members' headers before any array is read, and again on the built MDP."""
+    _form_name(form)
+    headers = npz_headers(upload.file, pointer="/file", settings=settings)
+    next_state = headers.get("next_state", ((), None))[0]
+    features = headers.get("features", ((), None))[0]
+    if len(next_state) == 2:
+        check_mdp_size(next_state[0], next_state[1], None, settings, pointer="/file", what="next_state")
+    if len(features) == 2:
+        check_mdp_size(features[0], 1, features[1], settings, pointer="/file", what="features")
+    arrays = read_npz(upload.file, pointer="/file")
+    unknown = sorted(set(arrays) - set(NPZ_ARRAYS))
+    if unknown:
+        raise Unprocessable(
+            f"mdp.npz holds unexpected arrays {unknown}.",
+            errors=[
+                {
+                    "pointer": "/file",
+                    "message": f"unexpected arrays {unknown}; expected some of {list(NPZ_ARRAYS)}",
+                }
+            ],
+        )
+    gamma = _form_number(form, "gamma", float)
+    if gamma is None:
+        raise Unprocessable(
+            "The form field gamma is required.", errors=[{"pointer": "/gamma", "message": "is required"}]
+        )
+    width, height = _form_number(form, "width", int), _form_number(form, "height", int)
+    if (width is None) != (height is None):
+        raise Unprocessable(
+            "Give both width and height, or neither.",
+            errors=[{"pointer": "/width", "message": "width and height go together"}],
+        )
+    channels = _form_number(form, "channels", int)
+    layout = None
+    if width is not None:
+        layout = Layout(width=width, height=height, channels=1 if channels is None else channels)
+    mdp = MDP.build(
+        gamma=gamma,
+        n_states=_form_number(form, "n_states", int),
+        n_actions=_form_number(form, "n_actions", int),
+        layout=layout,
+        **arrays,
+    )
+    features_width = None if mdp.features is None else mdp.n_features
+    check_mdp_size(mdp.n_states, mdp.n_actions, features_width, settings, pointer="/file")
+    return mdp
+
+
+@router.get("/mdps", summary="List MDPs")
+def list_mdps(lab: LabDep, session: SessionDep, page: PageDep) -> Page[MdpOut]:
+    """Your lab's MDPs, newest first (metadata only)."""
+    rows = mdps.list_mdps(session, lab_id=lab.id, page=page)
+    blobs = mdps.array_blobs(session, rows.rows)
+    return Page[MdpOut].of(rows, lambda row: MdpOut.of(row, blobs))
+
+
+@router.get("/mdps/{mdp_id}", summary="Get an MDP's metadata and summary")
+def get_mdp(mdp_id: str, lab: LabDep, session: SessionDep) -> MdpOut:
+    """Sizes, layout, a summary and array checksums; never the arrays themselves."""
+    row = mdps.get_mdp(session, mdp_id, lab_id=lab.id)
+    return MdpOut.of(row, mdps.array_blobs(session, [row]))
+
+
+@router.delete(
+    "/mdps/{mdp_id}",
+    status_code=status.HTTP_204_NO_CONTENT,
+    summary="Delete an MDP",
+    responses=DELETED,
+)
+def delete_mdp(mdp_id: str, lab: LabDep, session: SessionDep) -> Response:
+    """Removes the MDP and its stored arrays; 409 while a task or recording still uses it (delete those
+    first)."""
+    delete_mdp_rows(session, mdps.get_mdp(session, mdp_id, lab_id=lab.id))
+    session.commit()
+    return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+@router.get(
+    "/mdps/{mdp_id}/arrays",
+    summary="Download an MDP's arrays as .npz",
+    response_class=Response,
+    responses={
+        200: {"content": {"application/octet-stream": {}}, "description": "An .npz archive (no pickles)."}
+    },
+)
+def get_mdp_arrays(
+    mdp_id: str,
+    lab: LabDep,
+    session: SessionDep,
+    format: Annotated[Literal["npz"], Query(description="Archive format (only npz).")] = "npz",
+) -> Response:
+    """`features` (unless tabular), and `next_state` or `s`, `a`, `next`, `p`: the names `POST /v1/mdps` takes."""
+    row = mdps.get_mdp(session, mdp_id, lab_id=lab.id)
+    content = write_npz(load_mdp(session, row.id).arrays())
+    return Response(
+        content,
+        media_type="application/octet-stream",
+        headers={"Content-Disposition": f'attachment; filename="{row.id}.{format}"'},
+    )

@@ -1,0 +1,162 @@
+"""`/v1/demonstrators/{demonstrator_id}/recordings`: upload a centre-of-pressure recording (JSON or CSV) that
+becomes per-direction tasks and demonstrations; list a demonstrator's recordings (docs/motion.md)."""
+
+from __future__ import annotations
+
+import csv
+import io
+from typing import Annotated, Literal
+
+from fastapi import APIRouter, Query, Request, Response
+from pydantic import TypeAdapter
+from starlette.concurrency import run_in_threadpool
+
+from service.api.auth import LabDep
+from service.api.bodies import form_body, json_body, media_type, unsupported
+from service.api.deps import SessionDep
+from service.api.openapi import PROBLEM_RESPONSES, request_body
+from service.api.pagination import Page, PageDep
+from service.api.responses import file_response
+from service.api.schemas.motion import CutTrajectory, RecordingDemonstrationsOut
+from service.api.schemas.recordings import EXAMPLE_GRID_IN, EXAMPLE_IN, RecordingIn, RecordingOut
+from service.files.recording_samples import csv_samples, form_options, json_samples
+from service.jobs.rewards import Download
+from service.store import recordings
+from service.store.demonstrators import get_demonstrator
+
+router = APIRouter(tags=["demonstrations"], responses=PROBLEM_RESPONSES)
+OTHER_MDP: dict[int | str, dict[str, object]] = {
+    409: {"description": "A task of a segment's label exists on another MDP (problem+json)."}
+}
+RECORDING_IN = TypeAdapter(RecordingIn)
+JSON_OBJECT = "A JSON object, as in the JSON body."
+CSV_FORM = {
+    "type": "object",
+    "required": ["file", "bounds"],
+    "properties": {
+        "file": {
+            "type": "string",
+            "format": "binary",
+            "description": "CSV with header t,x,y and optionally instruction; one row per sample, in time order.",
+        },
+        "bounds": {"type": "string", "description": f"{JSON_OBJECT} x_min, x_max, y_min, y_max."},
+        "mdp_id": {"type": "string", "description": "A velocity-grid MDP of your lab (or give grid)."},
+        "grid": {"type": "string", "description": f"{JSON_OBJECT} width, height, gamma."},
+        "discretise": {"type": "string", "description": f"{JSON_OBJECT} smooth_s."},
+        "segment": {"type": "string", "description": f"{JSON_OBJECT} the segment settings."},
+        "name": {"type": "string"},
+    },
+}
+
+
+@router.post(
+    "/demonstrators/{demonstrator_id}/recordings",
+    status_code=201,
+    summary="Upload a centre-of-pressure recording",
+    description="Samples (t, x, y, optional instruction) on a force plate of the given bounds are mapped onto a "
+    "velocity-grid MDP (`mdp_id`, or `grid` to reuse or create one), cut into out-and-back movements at peaks "
+    "of the distance from the origin and labelled by instruction (or nearest direction). Each label becomes "
+    "or joins the demonstrator's task of that name and receives its segments as one demonstration batch. "
+    "Send JSON, or the CSV as multipart/form-data with the other fields as form fields. All or nothing: an "
+    "invalid recording (errors name the sample, e.g. `/samples/17/t`, and the CSV line) stores nothing.",
+    responses=OTHER_MDP,
+    openapi_extra=request_body(
+        RecordingIn,
+        json_examples={
+            "existing MDP": {"summary": "Onto a velocity grid of your lab", "value": EXAMPLE_IN},
+            "grid": {"summary": "Reuse or create a 100×100 velocity grid", "value": EXAMPLE_GRID_IN},
+        },
+        multipart=CSV_FORM,
+    ),
+)
+async def upload_recording(
+    demonstrator_id: str, request: Request, response: Response, lab: LabDep, session: SessionDep
+) -> RecordingOut:
+    """Parse the body, then validate, cut and store it in one transaction."""
+    demonstrator = await run_in_threadpool(get_demonstrator, session, demonstrator_id, lab_id=lab.id)
+    kind = media_type(request)
+    if kind == "multipart/form-data":
+        form, upload = await form_body(request)
+        options = form_options(form)
+        samples = csv_samples(await upload.read())
+    elif kind == "application/json":
+        body = await json_body(request, RECORDING_IN)
+        options, samples = body, json_samples(body)
+    else:
+        raise unsupported(request, accepted="application/json or multipart/form-data (CSV)")
+    created = await run_in_threadpool(recordings.add_recording, session, demonstrator, options, samples)
+    await run_in_threadpool(session.commit)
+    response.headers["Location"] = f"/v1/demonstrators/{demonstrator.id}/recordings"
+    return RecordingOut.of(created)
+
+
+@router.get("/demonstrators/{demonstrator_id}/recordings", summary="List a demonstrator's recordings")
+def list_recordings(
+    demonstrator_id: str, lab: LabDep, session: SessionDep, page: PageDep
+) -> Page[RecordingOut]:
+    """Recordings, newest first, each with its segments per label and the tasks they went to."""
+    rows = recordings.list_recordings(
+        session, get_demonstrator(session, demonstrator_id, lab_id=lab.id), page=page
+    )
+    return Page[RecordingOut].of(rows, RecordingOut.of)
+
+
+@router.get(
+    "/recordings/{recording_id}/demonstrations",
+    summary="Download the demonstrations a recording was cut into",
+    description="Every out-and-back movement the upload stored, as velocity-grid states and actions, label "
+    "(task) by label in time order: JSON, or with `?format=csv` the columns `trajectory,step,state,action` "
+    "that `POST /v1/tasks/{task_id}/demonstrations` accepts (the final state's row has an empty action). "
+    "`?label=` keeps one direction. Segments whose task was deleted since are gone with it.",
+    response_model=RecordingDemonstrationsOut,
+    responses={
+        200: {"description": "JSON, or with `?format=csv` a CSV file.", "content": {"text/csv": {}}},
+        404: {"description": "No such recording in your lab (problem+json)."},
+    },
+)
+def recording_demonstrations(
+    recording_id: str,
+    lab: LabDep,
+    session: SessionDep,
+    format: Annotated[Literal["json", "csv"], Query(description="`json` (default) or `csv`.")] = "json",
+    label: Annotated[
+        str | None, Query(description="Only this label (direction), e.g. `forward left`.")
+    ] = None,
+) -> RecordingDemonstrationsOut | Response:
+    """The recording's segments as trajectories (JSON) or CSV rows."""
+    row = recordings.get_recording(session, recording_id, lab_id=lab.id)
+    segments = [
+        s for s in recordings.recording_demonstrations(session, row) if label is None or s.label == label
+    ]
+    out = RecordingDemonstrationsOut(
+        recording_id=row.id,
+        mdp_id=row.mdp_id,
+        trajectories=[
+            CutTrajectory(
+                trajectory=f"{s.label}/{s.index}",
+                label=s.label,
+                task_id=s.task_id,
+                demonstration_id=s.demonstration_id,
+                states=s.trajectory.states.tolist(),
+                actions=s.trajectory.actions.tolist(),
+            )
+            for s in segments
+        ],
+    )
+    if format == "json":
+        return out
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(["trajectory", "step", "state", "action"])
+    for t in out.trajectories:
+        for step, state in enumerate(t.states):
+            writer.writerow([t.trajectory, step, state, t.actions[step] if step < len(t.actions) else ""])
+    return file_response(
+        Download(
+            content=buffer.getvalue().encode(),
+            media_type="text/csv",
+            filename=f"{row.id}-demonstrations.csv",
+            disposition="attachment",
+            etag=None,
+        )
+    )

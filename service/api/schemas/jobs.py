@@ -1,0 +1,169 @@
+"""Bodies of `/v1/jobs` (docs/api.md, "Jobs"): the submission, the job with its progress, and its event log."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from service.api.schemas.common import Resource
+from service.jobs.status import JobStatus
+from service.store.models.jobs import Job, JobEvent
+
+EXAMPLE_CONFIG: dict[str, Any] = {
+    "method": "meta_irl",
+    "sharing": "huber",
+    "sharing_weight": 1.0,
+    "backup": "max",
+    "confidence": 1.0,
+    "hidden": [100, 50, 25],
+    "learning_rate": 0.01,
+    "max_steps": 500,
+    "seed": 0,
+}
+EXAMPLE_PROGRESS: dict[str, Any] = {
+    "step": 120,
+    "max_steps": 500,
+    "loss": 1.204,
+    "irl_loss": 1.187,
+    "sharing_loss": 0.017,
+    "heldout_nll": 1.231,
+    "elapsed_s": 14.2,
+}
+
+
+class JobIn(BaseModel):
+    """Learn the rewards of a demonstrator's tasks (all of them unless `task_ids` picks some)."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "demonstrator_id": "dem_Qd8s0Xz4pN2uLm7vB1cE3w",
+                    "task_ids": ["task_7cXw2mB9tQk4Lr0sHn5yZa", "task_2kLm8nB3vQx9Tr1sYh6uWe"],
+                    "config": EXAMPLE_CONFIG,
+                }
+            ]
+        }
+    )
+
+    demonstrator_id: str
+    task_ids: list[str] | None = Field(
+        default=None,
+        description="Tasks to fit together (same states and features, each with demonstrations); "
+        "default: every task of the demonstrator.",
+    )
+    config: dict[str, Any] | None = Field(
+        default=None,
+        description="Fit settings (contract names): method, sharing, sharing_weight, sharing_states, backup, "
+        "bgi_k, confidence, hidden, learning_rate, max_steps, tolerance, seed, and holdout_fraction, patience, "
+        "ensemble, fourier_octaves. "
+        "Omitted settings take their defaults; an unknown or invalid one is a 422 naming `/config/<field>`.",
+    )
+
+
+class JobProgress(BaseModel):
+    """The latest optimisation step the worker reported (written at least once a second while running)."""
+
+    step: int
+    max_steps: int
+    loss: float
+    irl_loss: float
+    sharing_loss: float
+    heldout_nll: float | None = Field(
+        description="Held-out negative log-likelihood, when a hold-out is used."
+    )
+    elapsed_s: float
+
+
+class JobOut(Resource):
+    """A job: its inputs, the complete config used, lifecycle, progress and (when failed) why."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "id": "job_V3n8sK2qLx0bT7mY4cW9rA",
+                    "created_at": "2026-01-05T10:05:00Z",
+                    "demonstrator_id": "dem_Qd8s0Xz4pN2uLm7vB1cE3w",
+                    "task_ids": ["task_7cXw2mB9tQk4Lr0sHn5yZa", "task_2kLm8nB3vQx9Tr1sYh6uWe"],
+                    "status": "running",
+                    "config": EXAMPLE_CONFIG,
+                    "progress": EXAMPLE_PROGRESS,
+                    "error": None,
+                    "attempts": 1,
+                    "max_attempts": 3,
+                    "cancel_requested": False,
+                    "best_step": None,
+                    "updated_at": "2026-01-05T10:05:15Z",
+                    "started_at": "2026-01-05T10:05:01Z",
+                    "finished_at": None,
+                }
+            ]
+        }
+    )
+
+    demonstrator_id: str
+    task_ids: list[str]
+    status: JobStatus = Field(description="queued, running, succeeded, failed or cancelled (contract).")
+    config: dict[str, Any] = Field(description="Every fit setting used, defaults filled in.")
+    progress: JobProgress | None = Field(description="Null until the first step is reported.")
+    error: str | None = Field(description="When failed: what went wrong and what to change.")
+    attempts: int = Field(description="Runs started; more than 1 after a worker died and the job was re-run.")
+    max_attempts: int
+    cancel_requested: bool
+    best_step: int | None = Field(description="The step whose parameters were kept (when succeeded).")
+    updated_at: datetime
+    started_at: datetime | None
+    finished_at: datetime | None
+
+    @classmethod
+    def of(cls, job: Job) -> JobOut:
+        """The API view of a job row."""
+        progress = None
+        if job.step is not None:  # the worker writes all progress columns together
+            progress = JobProgress.model_validate({k: getattr(job, k) for k in JobProgress.model_fields})
+        return cls.model_validate(
+            {**{k: getattr(job, k) for k in cls.model_fields if k != "progress"}, "progress": progress}
+        )
+
+
+class JobEventOut(BaseModel):
+    """One line of a job's log: a status change (with a message) or a progress sample."""
+
+    model_config = ConfigDict(
+        from_attributes=True,
+        json_schema_extra={
+            "examples": [
+                {"id": 7, "at": "2026-01-05T10:05:06Z", "kind": "progress", "attempt": 1, **EXAMPLE_PROGRESS},
+                {
+                    "id": 9,
+                    "at": "2026-01-05T10:06:02Z",
+                    "kind": "status",
+                    "attempt": 1,
+                    "status": "succeeded",
+                    "message": "finished after 380 steps (kept step 280)",
+                },
+            ]
+        },
+    )
+
+    id: int
+    at: datetime
+    kind: str = Field(description="`status` or `progress`.")
+    attempt: int
+    status: JobStatus | None = None
+    message: str | None = None
+    step: int | None = None
+    max_steps: int | None = None
+    loss: float | None = None
+    irl_loss: float | None = None
+    sharing_loss: float | None = None
+    heldout_nll: float | None = None
+    elapsed_s: float | None = None
+
+    @classmethod
+    def of(cls, event: JobEvent) -> JobEventOut:
+        """The API view of an event row."""
+        return cls.model_validate(event)

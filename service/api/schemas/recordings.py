@@ -1,0 +1,174 @@
+"""Bodies of `/v1/demonstrators/{demonstrator_id}/recordings`: centre-of-pressure recordings (docs/motion.md).
+
+The plate bounds and segment settings are the engine's own frozen dataclasses (`metairl_engine.motion`), so a
+request carries exactly the knobs the pipeline has, with the engine's defaults.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+from pydantic.json_schema import JsonDict, JsonValue
+
+from metairl_engine.motion import Bounds, DiscretiseSettings, SegmentSettings
+from service.api.schemas.common import Resource
+from service.store.models.recordings import Recording as RecordingRow
+
+PLATE_EXAMPLE: JsonDict = {"x_min": -0.2, "x_max": 0.2, "y_min": -0.2, "y_max": 0.2}
+SAMPLES_EXAMPLE: list[JsonValue] = [
+    {"t": 0.00, "x": 0.000, "y": 0.000, "instruction": "forward"},
+    {"t": 0.01, "x": 0.001, "y": 0.004, "instruction": "forward"},
+    {"t": 0.02, "x": 0.001, "y": 0.009, "instruction": "forward"},
+]
+EXAMPLE_IN: JsonDict = {
+    "name": "session 1, unstimulated",
+    "mdp_id": "mdp_3q0f9b2yJm6nD1Kx8cT4wA",
+    "bounds": PLATE_EXAMPLE,
+    "samples": SAMPLES_EXAMPLE,
+}
+EXAMPLE_GRID_IN: JsonDict = {
+    "bounds": PLATE_EXAMPLE,
+    "grid": {"width": 100, "height": 100, "gamma": 0.9},
+    "segment": {"min_prominence": 0.3, "min_separation_s": 0.5},
+    "samples": SAMPLES_EXAMPLE,
+}
+
+
+class SampleIn(BaseModel):
+    """One COP sample: time, position on the plate and the instruction in force (none if absent or empty)."""
+
+    t: float
+    x: float
+    y: float
+    instruction: str | None = Field(
+        default=None, description="One of the 8 direction names of docs/motion.md (any case); empty = none."
+    )
+
+
+class GridIn(BaseModel):
+    """A velocity grid to map the recording onto: reused if the lab already has an identical one, else created."""
+
+    width: int = Field(ge=2, description="Cells across the plate (x).")
+    height: int = Field(ge=2, description="Cells along the plate (y, forward).")
+    gamma: float = Field(default=0.9, ge=0.0, lt=1.0, description="Discount factor of the MDP.")
+
+
+class DiscretiseIn(BaseModel):
+    """How samples become cells (the grid size is the MDP's)."""
+
+    smooth_s: float = Field(
+        default=DiscretiseSettings().smooth_s,
+        description="Moving-average window on x and y before binning, in the recording's time unit (0: off).",
+    )
+
+
+class RecordingOptions(BaseModel):
+    """Everything about a recording except its samples (a CSV upload sends these as form fields)."""
+
+    name: str | None = Field(default=None, max_length=200, description="A label for the recording.")
+    mdp_id: str | None = Field(
+        default=None, description="A velocity-grid MDP of your lab (8 velocity channels); or give `grid`."
+    )
+    grid: GridIn | None = Field(default=None, description="Instead of `mdp_id`: the velocity grid to use.")
+    bounds: Bounds = Field(description="The force plate's rectangle, in the samples' units.")
+    discretise: DiscretiseIn = DiscretiseIn()
+    segment: SegmentSettings = Field(
+        default=SegmentSettings(), description="How the session splits into out-and-back movements."
+    )
+
+
+class RecordingIn(RecordingOptions):
+    """A COP recording as JSON: one object per sample, in time order."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [EXAMPLE_IN]})
+
+    samples: list[SampleIn]
+
+
+class RecordingTask(BaseModel):
+    """A task the recording's segments went to."""
+
+    label: str = Field(
+        description="The segments' label (the instructed or nearest direction): the task name."
+    )
+    task_id: str
+    created: bool = Field(description="True if the upload created the task, false if it joined it.")
+    demonstration_id: str = Field(description="The demonstration batch holding these segments.")
+    n_trajectories: int = Field(description="Segments (out-and-back movements) added.")
+    n_steps: int = Field(description="Grid moves added over those segments.")
+
+
+class RecordingOut(Resource):
+    """A stored recording and what it produced."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "id": "rec_Yx3pQ9sLm2Kd7vN0bT5wCe",
+                    "created_at": "2026-01-05T10:05:00Z",
+                    "demonstrator_id": "dem_Qd8s0Xz4pN2uLm7vB1cE3w",
+                    "mdp_id": "mdp_3q0f9b2yJm6nD1Kx8cT4wA",
+                    "mdp_created": False,
+                    "name": "session 1, unstimulated",
+                    "format": "csv",
+                    "n_samples": 6012,
+                    "duration": 60.11,
+                    "segments": {"forward": 3, "right": 3},
+                    "dropped_segments": 0,
+                    "dropped_samples": 4710,
+                    "tasks": [
+                        {
+                            "label": "forward",
+                            "task_id": "task_7cXw2mB9tQk4Lr0sHn5yZa",
+                            "created": True,
+                            "demonstration_id": "trj_V0sN3kP8xR2qL5mT9wB1cD",
+                            "n_trajectories": 3,
+                            "n_steps": 212,
+                        }
+                    ],
+                    "settings": {
+                        "bounds": PLATE_EXAMPLE,
+                        "discretise": {"width": 100, "height": 100, "smooth_s": 0.05},
+                        "segment": {"origin": None, "min_prominence": 0.3},
+                    },
+                }
+            ]
+        }
+    )
+
+    demonstrator_id: str
+    mdp_id: str
+    mdp_created: bool = Field(description="True if the upload created the velocity grid (`grid` given).")
+    name: str | None
+    format: Literal["json", "csv"]
+    n_samples: int
+    duration: float = Field(description="Last minus first sample time.")
+    segments: dict[str, int] = Field(description="Segments kept per label.")
+    dropped_segments: int = Field(description="Movements that never left their grid cell (nothing to learn).")
+    dropped_samples: int = Field(
+        description="Samples that stayed in the previous sample's cell (pauses, stationary stretches)."
+    )
+    tasks: list[RecordingTask]
+    settings: dict[str, Any] = Field(
+        description="Bounds and the discretise/segment settings used, defaults filled."
+    )
+
+    @classmethod
+    def of(cls, row: RecordingRow) -> RecordingOut:
+        """The API view of a recording row (its summary holds the segments and tasks)."""
+        return cls.model_validate(
+            {
+                "id": row.id,
+                "created_at": row.created_at,
+                "demonstrator_id": row.demonstrator_id,
+                "mdp_id": row.mdp_id,
+                "name": row.name,
+                "format": row.format,
+                "n_samples": row.n_samples,
+                "duration": row.duration,
+                "settings": row.settings,
+                **row.summary,
+            }
+        )

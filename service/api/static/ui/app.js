@@ -1,0 +1,611 @@
+// metairl dashboard: plain JavaScript against the /v1 API (docs/api.md, "The dashboard").
+//
+// The API key lives in this tab's sessionStorage and goes out as `Authorization: Bearer`. Live progress
+// comes from `GET /v1/jobs/{id}/events` as Server-Sent Events when the server streams them (read with
+// fetch, since EventSource cannot send the header); when it answers anything else, the page polls
+// `GET /v1/jobs/{id}` instead.
+"use strict";
+
+const KEY_STORAGE = "metairl.apiKey";
+const TERMINAL = new Set(["succeeded", "failed", "cancelled"]);
+const POLL_MS = 1000;
+const JOB_LIST_MS = 10000;
+const STREAM_RETRIES = 3;
+// Browsers open at most 6 HTTP/1.1 connections to one server; streams beyond these few would starve the
+// page's other requests, so further jobs are polled.
+const MAX_STREAMS = 3;
+// The API's root: the page is served at <root>/ui.
+const ROOT = location.pathname.replace(/\/ui\/?$/, "");
+
+const state = {
+  key: sessionStorage.getItem(KEY_STORAGE) || "",
+  demonstrators: new Map(), // id -> demonstrator
+  jobs: new Map(), // id -> job
+  rows: new Map(), // id -> {tr, errorTr}
+  watching: new Map(), // id -> AbortController
+  selected: null, // job id whose results are shown
+  blobUrls: [],
+  listTimer: null,
+  generation: 0, // bumped when the key changes, so late answers for the old key are dropped
+  resultsCall: 0, // bumped by each showResults, so an earlier call's late answers never redraw the results
+  mode: "", // how progress arrives: "stream" or "polling"
+  openStreams: 0,
+};
+
+class ApiError extends Error {
+  constructor(status, detail) {
+    super(detail);
+    this.status = status;
+  }
+}
+
+const $ = (id) => document.getElementById(id);
+
+// A DOM element; children are nodes or strings (set as text, never parsed as HTML).
+function el(tag, attrs = {}, ...children) {
+  const node = document.createElement(tag);
+  for (const [name, value] of Object.entries(attrs)) {
+    if (value === undefined || value === null || value === false) continue;
+    if (name === "class") node.className = value;
+    else if (name === "style") Object.assign(node.style, value); // CSSOM, allowed by the page's CSP
+    else if (name.startsWith("on")) node.addEventListener(name.slice(2), value);
+    else node.setAttribute(name, value === true ? "" : String(value));
+  }
+  for (const child of children.flat()) {
+    if (child === undefined || child === null || child === false) continue;
+    node.append(child instanceof Node ? child : document.createTextNode(String(child)));
+  }
+  return node;
+}
+
+function fmt(x, digits = 3) {
+  if (x === null || x === undefined || Number.isNaN(x)) return "–";
+  const a = Math.abs(x);
+  if (a !== 0 && (a < 1e-3 || a >= 1e5)) return x.toExponential(2);
+  return x.toFixed(digits);
+}
+
+function showMessage(text, kind = "error") {
+  const box = $("message");
+  box.textContent = text;
+  box.className = `message ${kind === "info" ? "info" : ""}`;
+  box.hidden = !text;
+}
+
+// ---- HTTP ----------------------------------------------------------------------------------------
+
+async function api(path, options = {}) {
+  const headers = { Authorization: `Bearer ${state.key}`, ...(options.headers || {}) };
+  const response = await fetch(ROOT + path, { ...options, headers });
+  if (!response.ok) {
+    let detail = response.statusText;
+    try {
+      const problem = await response.json();
+      detail = problem.detail || problem.title || detail;
+    } catch (_) {
+      /* not problem+json */
+    }
+    throw new ApiError(response.status, detail);
+  }
+  return response;
+}
+
+async function getJson(path, options) {
+  return (await api(path, options)).json();
+}
+
+// Every item of a paged list, following next_cursor (at most 20 pages of 100).
+async function getAll(path) {
+  const items = [];
+  let cursor = null;
+  for (let page = 0; page < 20; page++) {
+    const query = new URLSearchParams({ limit: "100" });
+    if (cursor) query.set("cursor", cursor);
+    const body = await getJson(`${path}?${query}`);
+    items.push(...body.data);
+    if (!body.has_more) break;
+    cursor = body.next_cursor;
+  }
+  return items;
+}
+
+function reportError(error) {
+  if (error && error.name === "AbortError") return;
+  if (error instanceof ApiError && error.status === 401) {
+    showMessage("The server refused this API key (401). Paste a valid key of your lab.");
+    stopAll();
+    $("main").hidden = true;
+    $("welcome").hidden = false;
+    return;
+  }
+  showMessage(error instanceof ApiError ? `${error.status}: ${error.message}` : String(error));
+}
+
+// ---- key -----------------------------------------------------------------------------------------
+
+function useKey(key) {
+  state.key = key.trim();
+  stopAll();
+  if (!state.key) return;
+  sessionStorage.setItem(KEY_STORAGE, state.key);
+  $("key-input").value = state.key;
+  $("welcome").hidden = true;
+  $("main").hidden = false;
+  $("refresh").disabled = false;
+  showMessage("");
+  loadEverything();
+}
+
+function forgetKey() {
+  sessionStorage.removeItem(KEY_STORAGE);
+  state.key = "";
+  $("key-input").value = "";
+  stopAll();
+  $("main").hidden = true;
+  $("welcome").hidden = false;
+  $("refresh").disabled = true;
+  showMessage("The key was removed from this tab.", "info");
+}
+
+function stopAll() {
+  state.generation += 1;
+  state.resultsCall += 1;
+  for (const controller of state.watching.values()) controller.abort();
+  state.watching.clear();
+  clearInterval(state.listTimer);
+  state.listTimer = null;
+  state.jobs.clear();
+  state.rows.clear();
+  state.demonstrators.clear();
+  state.selected = null;
+  $("jobs").replaceChildren();
+  $("results").hidden = true;
+  releaseBlobs();
+}
+
+async function loadEverything() {
+  const generation = state.generation;
+  try {
+    await loadDemonstrators(generation);
+    await loadJobs(generation);
+  } catch (error) {
+    if (generation === state.generation) reportError(error);
+    return;
+  }
+  clearInterval(state.listTimer);
+  state.listTimer = setInterval(() => {
+    loadJobs(state.generation).catch(reportError);
+  }, JOB_LIST_MS);
+}
+
+// ---- demonstrators -------------------------------------------------------------------------------
+
+async function loadDemonstrators(generation) {
+  const demonstrators = await getAll("/v1/demonstrators");
+  const details = await Promise.all(
+    demonstrators.map(async (d) => {
+      const [tasks, recordings] = await Promise.all([
+        getAll(`/v1/demonstrators/${encodeURIComponent(d.id)}/tasks`),
+        getAll(`/v1/demonstrators/${encodeURIComponent(d.id)}/recordings`).catch(() => []),
+      ]);
+      return { ...d, tasks, recordings };
+    }),
+  );
+  if (generation !== state.generation) return;
+  state.demonstrators = new Map(details.map((d) => [d.id, d]));
+  renderDemonstrators();
+}
+
+function renderDemonstrators() {
+  const box = $("demonstrators");
+  if (state.demonstrators.size === 0) {
+    box.replaceChildren(el("p", { class: "empty" }, "No demonstrators yet."));
+    return;
+  }
+  box.replaceChildren(
+    ...[...state.demonstrators.values()].map((d) =>
+      el(
+        "div",
+        { class: "dem", "data-demonstrator": d.id },
+        el("div", { class: "dem-name" }, d.name),
+        el("div", { class: "id" }, d.id),
+        d.tasks.length
+          ? el(
+              "ul",
+              { class: "tasks" },
+              d.tasks.map((t) =>
+                el(
+                  "li",
+                  { "data-task": t.id },
+                  t.name,
+                  " ",
+                  el("span", { class: "meta" }, `· ${t.n_trajectories} traj., ${t.n_steps} steps${t.has_true_reward ? " · true reward" : ""}`),
+                ),
+              ),
+            )
+          : el("div", { class: "sub" }, "no tasks"),
+        d.recordings.length
+          ? el(
+              "div",
+              { class: "sub" },
+              "Recordings: ",
+              d.recordings
+                .map((r) => `${r.name} (${r.n_samples} samples, ${fmt(r.duration, 1)} s)`)
+                .join("; "),
+            )
+          : el("div", { class: "sub" }, "no recordings"),
+      ),
+    ),
+  );
+}
+
+function demonstratorName(id) {
+  const d = state.demonstrators.get(id);
+  return d ? d.name : id;
+}
+
+// ---- jobs ----------------------------------------------------------------------------------------
+
+async function loadJobs(generation) {
+  const jobs = await getAll("/v1/jobs");
+  if (generation !== state.generation) return;
+  const unknown = jobs.some((j) => !state.demonstrators.has(j.demonstrator_id));
+  if (unknown) await loadDemonstrators(generation).catch(() => undefined);
+  for (const job of jobs) {
+    const known = state.jobs.get(job.id);
+    // A watched job's row is kept current by its stream or poll; the list only adds new ones.
+    if (!known || !state.watching.has(job.id)) updateJob(job);
+  }
+  orderRows(jobs.map((j) => j.id));
+  $("jobs-empty").hidden = jobs.length > 0;
+  for (const job of jobs) watch(job);
+}
+
+function orderRows(ids) {
+  const body = $("jobs");
+  for (const id of ids) {
+    const row = state.rows.get(id);
+    if (row) body.append(row.tr, row.errorTr);
+  }
+}
+
+function updateJob(job) {
+  const previous = state.jobs.get(job.id);
+  state.jobs.set(job.id, job);
+  renderJobRow(job);
+  if (previous && previous.status !== "succeeded" && job.status === "succeeded" && state.selected === null) {
+    showResults(job.id);
+  }
+}
+
+function renderJobRow(job) {
+  let row = state.rows.get(job.id);
+  if (!row) {
+    const tr = el("tr", { "data-job": job.id });
+    const errorTr = el("tr", { class: "error-row", hidden: true }, el("td", { class: "error", colspan: 6 }));
+    row = { tr, errorTr };
+    state.rows.set(job.id, row);
+    $("jobs").prepend(tr, errorTr);
+    $("jobs-empty").hidden = true;
+  }
+  const p = job.progress;
+  const steps = p ? p.max_steps || job.config.max_steps : job.config && job.config.max_steps;
+  const fraction = job.status === "succeeded" ? 1 : p && steps ? Math.min(1, p.step / steps) : 0;
+  const done = job.status === "succeeded";
+  const barText = p ? `step ${p.step} / ${steps}${p.elapsed_s != null ? ` · ${fmt(p.elapsed_s, 1)} s` : ""}` : job.status === "queued" ? "waiting for a worker" : "";
+  const created = new Date(job.created_at);
+  row.tr.dataset.status = job.status;
+  row.tr.className = state.selected === job.id ? "selected" : "";
+  row.tr.replaceChildren(
+    el("td", {}, el("div", { class: "id", title: job.id }, job.id), el("div", { class: "bar-text" }, created.toLocaleString())),
+    el("td", {}, demonstratorName(job.demonstrator_id), el("div", { class: "bar-text" }, `${job.task_ids.length} tasks`)),
+    el("td", {}, el("span", { class: `badge ${job.status}`, "data-role": "status" }, job.cancel_requested && !TERMINAL.has(job.status) ? `${job.status} (cancelling)` : job.status)),
+    el(
+      "td",
+      {},
+      el("div", { class: `bar${done ? " done" : ""}`, role: "progressbar", "aria-valuemin": 0, "aria-valuemax": 100, "aria-valuenow": Math.round(fraction * 100) }, el("span", { style: { width: `${(fraction * 100).toFixed(1)}%` } })),
+      el("div", { class: "bar-text" }, barText),
+    ),
+    el("td", { class: "num" }, p ? fmt(p.loss) : "–"),
+    el(
+      "td",
+      { class: "actions" },
+      !TERMINAL.has(job.status)
+        ? el("button", { class: "danger small", "data-action": "cancel", disabled: job.cancel_requested, onclick: () => cancelJob(job.id) }, "Cancel")
+        : null,
+      job.status === "succeeded"
+        ? el("button", { class: "small", "data-action": "results", onclick: () => showResults(job.id) }, "Results")
+        : null,
+    ),
+  );
+  const errorCell = row.errorTr.firstChild;
+  errorCell.textContent = job.error || "";
+  row.errorTr.hidden = !job.error;
+}
+
+async function cancelJob(id) {
+  try {
+    const job = await getJson(`/v1/jobs/${encodeURIComponent(id)}/cancel`, { method: "POST" });
+    updateJob(job);
+  } catch (error) {
+    reportError(error);
+  }
+}
+
+// ---- live progress: the event stream, else polling -----------------------------------------------
+
+function setMode(mode) {
+  if (state.mode === mode) return;
+  state.mode = mode;
+  const labels = { stream: "● live (event stream)", polling: `● live (polling every ${POLL_MS / 1000} s)`, "": "" };
+  $("live").textContent = labels[mode];
+}
+
+function watch(job) {
+  if (TERMINAL.has(job.status) || state.watching.has(job.id)) return;
+  const controller = new AbortController();
+  state.watching.set(job.id, controller);
+  const generation = state.generation;
+  follow(job.id, controller.signal)
+    .catch((error) => {
+      if (generation === state.generation) reportError(error);
+    })
+    .finally(() => {
+      if (state.watching.get(job.id) === controller) state.watching.delete(job.id);
+      if (state.watching.size === 0) setMode("");
+    });
+}
+
+async function follow(id, signal) {
+  let lastEventId = null;
+  for (let attempt = 0; attempt < STREAM_RETRIES && state.openStreams < MAX_STREAMS; attempt++) {
+    const outcome = await stream(id, signal, lastEventId).catch((error) => {
+      if (error.name === "AbortError") throw error;
+      if (error instanceof ApiError && error.status === 401) throw error;
+      return { ended: false, unsupported: false, lastEventId };
+    });
+    if (outcome.ended) return;
+    if (outcome.unsupported) break;
+    lastEventId = outcome.lastEventId;
+  }
+  await poll(id, signal);
+}
+
+// Read the SSE stream of one job. Resolves {ended} once a terminal status arrived (or the job is final),
+// {unsupported} when the server answered something other than an event stream.
+async function stream(id, signal, lastEventId) {
+  const headers = { Accept: "text/event-stream" };
+  if (lastEventId) headers["Last-Event-ID"] = lastEventId;
+  const response = await api(`/v1/jobs/${encodeURIComponent(id)}/events`, { headers, signal });
+  const type = response.headers.get("content-type") || "";
+  if (!type.startsWith("text/event-stream") || !response.body) {
+    await response.body?.cancel().catch(() => undefined);
+    return { ended: false, unsupported: true, lastEventId };
+  }
+  setMode("stream");
+  const reader = response.body.pipeThrough(new TextDecoderStream()).getReader();
+  let buffer = "";
+  state.openStreams += 1;
+  try {
+    for (;;) {
+      const { value, done } = await reader.read();
+      if (done) break;
+      buffer += value;
+      const blocks = buffer.split(/\r\n\r\n|\n\n|\r\r/);
+      buffer = blocks.pop();
+      for (const block of blocks) {
+        const event = parseEvent(block);
+        if (!event) continue;
+        if (event.id !== null) lastEventId = event.id;
+        if (await onEvent(id, event)) return { ended: true, unsupported: false, lastEventId };
+      }
+    }
+  } finally {
+    state.openStreams -= 1;
+    reader.cancel().catch(() => undefined);
+  }
+  // The stream closed: it ends after the terminal status, so look at the job itself.
+  const job = await refreshJob(id);
+  return { ended: TERMINAL.has(job.status), unsupported: false, lastEventId };
+}
+
+function parseEvent(block) {
+  let name = "message";
+  let id = null;
+  const data = [];
+  for (const line of block.split(/\r\n|\n|\r/)) {
+    if (!line || line.startsWith(":")) continue;
+    const colon = line.indexOf(":");
+    const field = colon < 0 ? line : line.slice(0, colon);
+    let value = colon < 0 ? "" : line.slice(colon + 1);
+    if (value.startsWith(" ")) value = value.slice(1);
+    if (field === "event") name = value;
+    else if (field === "data") data.push(value);
+    else if (field === "id") id = value;
+  }
+  if (data.length === 0) return null;
+  let payload;
+  try {
+    payload = JSON.parse(data.join("\n"));
+  } catch (_) {
+    return null;
+  }
+  return { name, id, data: payload };
+}
+
+// Apply one event to the job's row; true once the job is final.
+async function onEvent(id, event) {
+  const job = state.jobs.get(id);
+  if (!job) return false;
+  const data = event.data || {};
+  if (event.name === "progress" || data.kind === "progress") {
+    const progress = data.progress || data;
+    if (typeof progress.step === "number") {
+      const status = job.status === "queued" ? "running" : job.status;
+      updateJob({ ...job, status, progress: { ...(job.progress || {}), ...progress } });
+    }
+    return false;
+  }
+  if (event.name === "status" || data.kind === "status") {
+    // The job row has the rest (error, attempts, timestamps): read it.
+    const fresh = await refreshJob(id);
+    return TERMINAL.has(fresh.status);
+  }
+  return false;
+}
+
+async function refreshJob(id) {
+  const job = await getJson(`/v1/jobs/${encodeURIComponent(id)}`);
+  updateJob(job);
+  return job;
+}
+
+async function poll(id, signal) {
+  setMode("polling");
+  while (!signal.aborted) {
+    const job = await getJson(`/v1/jobs/${encodeURIComponent(id)}`, { signal });
+    if (signal.aborted) return;
+    updateJob(job);
+    if (TERMINAL.has(job.status)) return;
+    await new Promise((resolve) => setTimeout(resolve, POLL_MS));
+  }
+}
+
+// ---- results -------------------------------------------------------------------------------------
+
+function releaseBlobs() {
+  for (const url of state.blobUrls) URL.revokeObjectURL(url);
+  state.blobUrls = [];
+}
+
+async function showResults(id) {
+  const call = ++state.resultsCall;
+  const current = () => call === state.resultsCall;
+  state.selected = id;
+  for (const [jobId, row] of state.rows) row.tr.className = jobId === id ? "selected" : "";
+  releaseBlobs();
+  const section = $("results");
+  section.hidden = false;
+  section.dataset.job = id;
+  $("results-title").textContent = `Results of ${id}`;
+  $("heatmaps").replaceChildren(el("p", { class: "empty" }, "Loading…"));
+  $("matrix").replaceChildren();
+  $("key-states").replaceChildren();
+  try {
+    const [rewards, matrix] = await Promise.all([
+      getJson(`/v1/jobs/${encodeURIComponent(id)}/rewards`),
+      getJson(`/v1/jobs/${encodeURIComponent(id)}/comparison-matrix`),
+    ]);
+    if (!current()) return;
+    renderHeatmaps(rewards, current);
+    renderMatrix(matrix);
+    const keyStates = await Promise.all(
+      rewards.tasks.map((t) => getJson(`/v1/rewards/${encodeURIComponent(t.reward_id)}/key-states?top=5`)),
+    );
+    if (!current()) return;
+    renderKeyStates(rewards.tasks, keyStates);
+  } catch (error) {
+    if (current()) reportError(error);
+  }
+}
+
+function renderHeatmaps(rewards, current) {
+  const cards = [rewards.baseline, ...rewards.tasks].map((reward) => {
+    const title = reward.kind === "baseline" ? "baseline (shared)" : reward.task_name || reward.task_id;
+    const s = reward.summary;
+    const picture = reward.links.png
+      ? el("img", { alt: `heatmap of ${title}`, "data-reward": reward.reward_id })
+      : el("div", { class: "nopic" }, "No layout on this MDP, so no heatmap (download JSON or CSV).");
+    const card = el(
+      "figure",
+      { class: `heatmap ${reward.kind}`, "data-reward-kind": reward.kind },
+      el("h4", {}, title),
+      picture,
+      el(
+        "figcaption",
+        { class: "stats" },
+        `min ${fmt(s.min)} · max ${fmt(s.max)} (state ${s.argmax_state})`,
+        reward.truth_pearson !== null ? ` · r vs truth ${fmt(reward.truth_pearson, 2)}` : "",
+      ),
+    );
+    if (reward.links.png) loadImage(picture, reward.links.png, current);
+    return card;
+  });
+  $("heatmaps").replaceChildren(...cards);
+}
+
+async function loadImage(img, link, current) {
+  try {
+    const blob = await (await api(link)).blob();
+    if (!current()) return;
+    const url = URL.createObjectURL(blob);
+    state.blobUrls.push(url);
+    img.src = url;
+  } catch (error) {
+    img.replaceWith(el("div", { class: "nopic" }, `Heatmap unavailable: ${error.message}`));
+  }
+}
+
+// Diverging colours for a correlation in [-1, 1]: red below 0, blue above.
+function correlationColour(r) {
+  const a = Math.min(1, Math.abs(r));
+  return r >= 0 ? `rgba(37, 99, 235, ${0.08 + 0.8 * a})` : `rgba(220, 38, 38, ${0.08 + 0.8 * a})`;
+}
+
+function renderMatrix(m) {
+  const head = el("tr", {}, el("th", {}), m.labels.map((label) => el("th", { title: label }, label)));
+  const rows = m.matrix.map((row, i) =>
+    el(
+      "tr",
+      {},
+      el("th", { class: "row", title: m.labels[i] }, m.labels[i]),
+      row.map((r) =>
+        el("td", { class: "num", style: { background: correlationColour(r), color: Math.abs(r) > 0.55 ? "#fff" : "#1f2933" } }, fmt(r, 2)),
+      ),
+    ),
+  );
+  $("matrix").replaceChildren(el("table", { class: "matrix" }, el("thead", {}, head), el("tbody", {}, rows)));
+}
+
+function renderKeyStates(tasks, all) {
+  const tables = all.map((ks, i) =>
+    el(
+      "table",
+      { "data-task": ks.task_id },
+      el("caption", {}, tasks[i].task_name || ks.task_id),
+      el("thead", {}, el("tr", {}, ["#", "state", "x, y", "reward", "baseline", "diff."].map((h) => el("th", {}, h)))),
+      el(
+        "tbody",
+        {},
+        ks.states.map((s) =>
+          el(
+            "tr",
+            {},
+            el("td", {}, s.rank),
+            el("td", {}, s.state),
+            el("td", {}, s.x === null ? "–" : `${s.x}, ${s.y}${s.channel ? ` (${s.channel})` : ""}`),
+            el("td", { class: "num" }, fmt(s.reward, 2)),
+            el("td", { class: "num" }, fmt(s.baseline, 2)),
+            el("td", { class: `num ${s.difference >= 0 ? "pos" : "neg"}` }, fmt(s.difference, 2)),
+          ),
+        ),
+      ),
+    ),
+  );
+  $("key-states").replaceChildren(...(tables.length ? tables : [el("p", { class: "empty" }, "No tasks.")]));
+}
+
+// ---- start ---------------------------------------------------------------------------------------
+
+document.addEventListener("DOMContentLoaded", () => {
+  $("key-form").addEventListener("submit", (event) => {
+    event.preventDefault();
+    useKey($("key-input").value);
+  });
+  $("key-forget").addEventListener("click", forgetKey);
+  $("refresh").addEventListener("click", () => {
+    const selected = state.selected;
+    loadEverything().then(() => selected && state.jobs.has(selected) && showResults(selected));
+  });
+  if (state.key) useKey(state.key);
+});

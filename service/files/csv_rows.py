@@ -1,0 +1,66 @@
+"""Reading uploaded CSV tables: the header check, the data rows with their line numbers, the 422 error.
+
+Shared by the demonstration upload (`csv_demos`) and the COP recording upload (`recordings`).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Iterable, Iterator, Sequence
+
+from service.problems import Unprocessable
+
+MAX_ERRORS = 20
+"""At most this many malformed rows are reported for one upload."""
+
+
+def csv_error(items: Iterable[tuple[str, str]]) -> Unprocessable:
+    """A 422 listing (pointer, message) pairs of a CSV that could not be read; the detail repeats the first."""
+    errors = [{"pointer": p, "message": m} for p, m in items]
+    return Unprocessable(f"The CSV is invalid: {errors[0]['message']}", errors=errors)
+
+
+def csv_rows(
+    data: bytes, *, required: Sequence[str], optional: Sequence[str] = ()
+) -> tuple[set[str], Iterator[tuple[int, dict[str, str]]]]:
+    """(columns present, rows) of a UTF-8 CSV: each non-blank data row as (CSV line, {column: stripped cell}).
+
+    Raises a 422 when the file is not UTF-8 or its header lacks a required column (header names are
+    case-insensitive; other columns are ignored), and, while iterating, at a row with more non-empty cells
+    than the header has columns (a shifted or merged row must not be read as something else).
+    """
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise csv_error([("", f"the file is not UTF-8 text ({exc})")]) from exc
+    reader = csv.reader(io.StringIO(text))
+    header = [h.strip().lower() for h in next(reader, [])]
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise csv_error(
+            [
+                (
+                    "",
+                    f"CSV line 1: the header must name the columns {', '.join(required)}; missing {', '.join(missing)}",
+                )
+            ]
+        )
+    col = {c: header.index(c) for c in (*required, *optional) if c in header}
+
+    def rows() -> Iterator[tuple[int, dict[str, str]]]:
+        for line, row in enumerate(reader, start=2):
+            if any(cell.strip() for cell in row):
+                if len(row) > len(header) and any(cell.strip() for cell in row[len(header) :]):
+                    raise csv_error(
+                        [
+                            (
+                                "",
+                                f"CSV line {line}: has {len(row)} cells but the header names {len(header)} "
+                                "columns; remove the extra cells (or quote a cell that contains a comma)",
+                            )
+                        ]
+                    )
+                yield line, {c: (row[i].strip() if i < len(row) else "") for c, i in col.items()}
+
+    return set(col), rows()

@@ -1,0 +1,116 @@
+"""Recording samples as uploaded: JSON rows or a CSV with columns ``t,x,y[,instruction]``, and a CSV upload's
+other fields; every problem a 422 naming the sample (and its CSV line)."""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass
+from typing import Any, Literal
+
+from pydantic import ValidationError
+from starlette.datastructures import FormData
+
+from metairl_engine import InvalidInput
+from service.api.schemas.recordings import RecordingIn, RecordingOptions
+from service.files.csv_rows import MAX_ERRORS, csv_error, csv_rows
+from service.problems import Unprocessable, validation_errors
+
+Format = Literal["json", "csv"]
+REQUIRED_COLUMNS = ("t", "x", "y")
+INSTRUCTION_COLUMN = "instruction"
+OBJECT_FIELDS = ("bounds", "grid", "discretise", "segment")
+"""Form fields of a CSV upload that hold a JSON object (the others are plain strings)."""
+SAMPLE_POINTER = re.compile(r"^/samples/(\d+)(/|$)")
+
+
+@dataclass(frozen=True)
+class Samples:
+    """Uploaded sample columns; ``lines`` gives the CSV line of every sample (None for JSON)."""
+
+    t: list[float]
+    x: list[float]
+    y: list[float]
+    instruction: list[str | None] | None
+    format: Format
+    lines: list[int] | None = None
+
+    def located(self, error: InvalidInput) -> Unprocessable:
+        """The engine's issues as a 422, each sample's CSV line added to its message."""
+        items = []
+        for issue in error.issues:
+            match = SAMPLE_POINTER.match(issue.pointer)
+            line = self.lines[int(match.group(1))] if match and self.lines else None
+            suffix = f" (CSV line {line})" if line else ""
+            items.append({"pointer": issue.pointer, "message": issue.message + suffix})
+        first = items[0]
+        return Unprocessable(
+            f"The recording is invalid. {first['pointer'] or '/'}: {first['message']}", errors=items
+        )
+
+
+def json_samples(body: RecordingIn) -> Samples:
+    """The sample columns of a JSON body (the instruction column only if some sample has one)."""
+    rows = body.samples
+    given = any(r.instruction is not None for r in rows)
+    return Samples(
+        t=[r.t for r in rows],
+        x=[r.x for r in rows],
+        y=[r.y for r in rows],
+        instruction=[r.instruction for r in rows] if given else None,
+        format="json",
+    )
+
+
+def csv_samples(data: bytes) -> Samples:
+    """Parse a CSV with header ``t,x,y`` and optionally ``instruction``; 422 naming sample and line."""
+    present, rows = csv_rows(data, required=REQUIRED_COLUMNS, optional=(INSTRUCTION_COLUMN,))
+    values: dict[str, list[float]] = {c: [] for c in REQUIRED_COLUMNS}
+    instruction: list[str | None] = []
+    lines: list[int] = []
+    errors: list[tuple[str, str]] = []
+    for line, cells in rows:
+        k = len(lines)
+        for c in REQUIRED_COLUMNS:
+            try:
+                values[c].append(float(cells[c]))
+            except ValueError:
+                values[c].append(float("nan"))
+                errors.append((f"/samples/{k}/{c}", f"{c} {cells[c]!r} is not a number (CSV line {line})"))
+        instruction.append(cells.get(INSTRUCTION_COLUMN) or None)
+        lines.append(line)
+        if len(errors) >= MAX_ERRORS:
+            break
+    if errors:
+        raise csv_error(errors)
+    return Samples(
+        t=values["t"],
+        x=values["x"],
+        y=values["y"],
+        instruction=instruction if INSTRUCTION_COLUMN in present else None,
+        format="csv",
+        lines=lines,
+    )
+
+
+def form_options(form: FormData) -> RecordingOptions:
+    """The options of a CSV upload from its form fields (``bounds``, ``grid``, ``discretise``, ``segment``
+    as JSON objects; ``mdp_id`` and ``name`` as text); 422 with pointers as for a JSON body."""
+    raw: dict[str, Any] = {}
+    for key, value in form.items():
+        if not isinstance(value, str):
+            continue
+        if key not in OBJECT_FIELDS:
+            raw[key] = value
+            continue
+        try:
+            raw[key] = json.loads(value)
+        except ValueError as exc:
+            raise Unprocessable(
+                f"The form field {key} must be a JSON object.",
+                errors=[{"pointer": f"/{key}", "message": f"is not valid JSON ({exc})"}],
+            ) from exc
+    try:
+        return RecordingOptions.model_validate(raw)
+    except ValidationError as exc:
+        raise validation_errors(exc.errors(include_url=False), raw) from exc

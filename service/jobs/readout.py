@@ -1,0 +1,151 @@
+"""The motion readout (docs/api.md, "Motion readout"; docs/motion.md, "Readout"): per instructed direction, the kinematic
+descriptors of a demonstrator's recordings with 95 % bootstrap intervals, two demonstrators' (or sessions')
+differences, and beside them the learned-reward readout of each side's latest succeeded job.
+
+numpy only: the kinematics are `metairl_engine.kinematics`, the learned-reward part `metairl_engine.
+baseline_readout`; the comparison figure is drawn by `kinematics.comparison_png` (matplotlib, Agg). Nothing
+here writes to the database.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from metairl_engine.baseline_readout import BASELINE_CAVEAT, ring_centred
+from metairl_engine.grids import DIRECTION_NAMES
+from metairl_engine.kinematics import Movement, compare, comparison_png, movements, summarise
+from service.api.schemas.motion import UNITS
+from service.jobs.rewards import metrics, visited_states
+from service.jobs.status import JobStatus
+from service.problems import Conflict
+from service.store.blobs import get_array
+from service.store.models.demonstrators import Demonstrator, Task
+from service.store.models.jobs import Job, Reward
+from service.store.models.mdps import Mdp
+from service.store.recordings import demonstrator_recordings, load_recording
+
+
+def demonstrator_movements(session: Session, demonstrator: Demonstrator) -> tuple[list[Movement], int]:
+    """The out-and-back movements of every recording of the demonstrator (each cut with the segment settings
+    of its upload), and the number of recordings; 409 with a reason when it has none."""
+    rows = demonstrator_recordings(session, demonstrator)
+    if not rows:
+        raise Conflict(
+            f"Demonstrator {demonstrator.id} has no recordings, so there is no motion to read out; upload "
+            f"one with POST /v1/demonstrators/{demonstrator.id}/recordings."
+        )
+    moves = []
+    for row in rows:
+        rec, segment_settings = load_recording(session, row)
+        moves += movements(rec, segment_settings=segment_settings)
+    return moves, len(rows)
+
+
+def motion_summary(session: Session, demonstrator: Demonstrator) -> dict[str, Any]:
+    """The summary: per direction n_segments and each descriptor's mean with a 95 % interval."""
+    moves, n_recordings = demonstrator_movements(session, demonstrator)
+    return {
+        "demonstrator_id": demonstrator.id,
+        "units": UNITS,
+        "n_recordings": n_recordings,
+        **summarise(moves),
+    }
+
+
+def motion_comparison(session: Session, a: Demonstrator, b: Demonstrator) -> dict[str, Any]:
+    """b minus a per direction and descriptor (with intervals), both sides' summaries, and the learned-reward
+    readout of each side's latest succeeded job (None where it has none)."""
+    moves_a, _ = demonstrator_movements(session, a)
+    moves_b, _ = demonstrator_movements(session, b)
+    result = compare(moves_a, moves_b)
+    return {
+        "a": {"demonstrator_id": a.id, "name": a.name, **result["a"]},
+        "b": {"demonstrator_id": b.id, "name": b.name, **result["b"]},
+        "units": UNITS,
+        "directions": result["directions"],
+        "learned": {"a": learned_readout(session, a), "b": learned_readout(session, b)},
+        "links": {"png": "/v1/motion-comparisons?format=png"},
+    }
+
+
+def comparison_figure(comparison: dict[str, Any]) -> bytes:
+    """The comparison as one PNG: peak reach per direction of both sides, then b − a per descriptor."""
+    names = (comparison["a"]["name"] or "a", comparison["b"]["name"] or "b")
+    if names[0] == names[1]:
+        names = (f"{names[0]} (a)", f"{names[1]} (b)")
+    return comparison_png(comparison, names=names)
+
+
+def latest_succeeded_job(session: Session, demonstrator: Demonstrator) -> Job | None:
+    """The demonstrator's most recently submitted job that succeeded, if any."""
+    query = (
+        select(Job)
+        .where(
+            Job.demonstrator_id == demonstrator.id,
+            Job.lab_id == demonstrator.lab_id,
+            Job.status == JobStatus.SUCCEEDED.value,
+        )
+        .order_by(Job.created_at.desc(), Job.id.desc())
+        .limit(1)
+    )
+    return session.execute(query).scalars().first()
+
+
+def learned_readout(session: Session, demonstrator: Demonstrator) -> dict[str, Any] | None:
+    """The learned-reward readout of the demonstrator's latest succeeded job, per direction task (tasks named
+    by a direction, as recordings name them): ``baseline_ring_centred``, the mean over the task's visited
+    states of the baseline minus its mean at the same distance from the centre (`ring_centred`: the part of
+    the baseline out-and-back movements identify; higher = the baseline favours that direction's path), and
+    ``task_baseline_pearson`` on those states. None without a succeeded job."""
+    job = latest_succeeded_job(session, demonstrator)
+    if job is None:
+        return None
+    rows = list(
+        session.execute(select(Reward).where(Reward.job_id == job.id).order_by(Reward.ordinal)).scalars()
+    )
+    out: dict[str, Any] = {
+        "job_id": job.id,
+        "baseline_reward_id": rows[0].id if rows else None,
+        "caveat": BASELINE_CAVEAT,
+        "directions": [],
+    }
+    if not rows:
+        return out
+    tasks = {t.id: t for t in session.execute(select(Task).where(Task.id.in_(job.task_ids))).scalars()}
+    direction_tasks = sorted(
+        (
+            (r, tasks[r.task_id])
+            for r in rows[1:]
+            if r.task_id is not None and r.task_id in tasks and tasks[r.task_id].name in DIRECTION_NAMES
+        ),
+        key=lambda pair: DIRECTION_NAMES.index(pair[1].name),
+    )
+    first = tasks.get(job.task_ids[0]) if job.task_ids else None
+    mdp = session.get(Mdp, first.mdp_id) if first is not None else None
+    layout = (mdp.layout if mdp is not None else None) or {}
+    n_states = rows[0].n_states
+    if not direction_tasks or layout.get("channels") != 8:
+        return out
+    baseline = get_array(session, rows[0].reward_blob_id).astype(np.float64)
+    visited = {task.id: visited_states(session, [task.id], n_states) for _, task in direction_tasks}
+    union = np.flatnonzero(np.logical_or.reduce(list(visited.values())))
+    centred = np.zeros(n_states)
+    centred[union] = ring_centred(baseline, width=layout["width"], height=layout["height"], states=union)
+    for reward, task in direction_tasks:
+        mask = visited[task.id]
+        values = get_array(session, reward.reward_blob_id).astype(np.float64)
+        out["directions"].append(
+            {
+                "direction": task.name,
+                "task_id": task.id,
+                "reward_id": reward.id,
+                "n_visited_states": int(mask.sum()),
+                "baseline_ring_centred": float(centred[mask].mean()) if mask.any() else None,
+                "task_baseline_pearson": metrics().pearson(values, baseline, mask=mask),
+            }
+        )
+    return out

@@ -1,6 +1,0 @@
-"""Every table of the service; importing this package registers them all on `Base.metadata`."""
-
-from service.models import blobs, demonstrators, idempotency, jobs, labs, mdps, recordings
-from service.models.base import Base
-
-__all__ = ["Base", "blobs", "demonstrators", "idempotency", "jobs", "labs", "mdps", "recordings"]

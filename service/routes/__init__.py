@@ -1,1 +1,0 @@
-"""HTTP routes, one module per resource; each is a thin layer over the data-layer functions."""

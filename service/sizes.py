@@ -1,0 +1,66 @@
+"""Size limits (settings ``METAIRL_MAX_*``): how large an MDP, an uploaded array or a network may be.
+
+Checked when an MDP is uploaded and again when a job is submitted (the limits may have been lowered since),
+each failure a 422 naming the setting, so no request and no job can ask for unbounded memory.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from service.problems import Unprocessable
+from service.settings import Settings
+
+
+def too_large(pointer: str, message: str) -> Unprocessable:
+    """A 422 at `pointer` saying what is too large and which setting bounds it."""
+    return Unprocessable(
+        f"Too large: {pointer or 'the body'} {message}.", errors=[{"pointer": pointer, "message": message}]
+    )
+
+
+def check_array_elements(name: str, shape: Sequence[int], settings: Settings, *, pointer: str) -> None:
+    """422 if an uploaded array of `shape` has more than `max_array_elements` elements."""
+    n = 1
+    for d in shape:
+        n *= int(d)
+    if n > settings.max_array_elements:
+        raise too_large(
+            pointer,
+            f"array {name!r} of shape {tuple(int(d) for d in shape)} has {n:,} elements; at most "
+            f"{settings.max_array_elements:,} (METAIRL_MAX_ARRAY_ELEMENTS)",
+        )
+
+
+def check_mdp_size(
+    n_states: int,
+    n_actions: int,
+    n_features: int | None,
+    settings: Settings,
+    *,
+    pointer: str,
+    what: str = "the MDP",
+) -> None:
+    """422 if states × actions exceeds `max_state_actions` or the features are wider than `max_features`."""
+    if n_states * n_actions > settings.max_state_actions:
+        raise too_large(
+            pointer,
+            f"{what} has {n_states:,} states × {n_actions:,} actions = {n_states * n_actions:,}; at most "
+            f"{settings.max_state_actions:,} (METAIRL_MAX_STATE_ACTIONS)",
+        )
+    if n_features is not None and n_features > settings.max_features:
+        raise too_large(
+            pointer,
+            f"{what} has {n_features:,} features per state; at most {settings.max_features:,} "
+            "(METAIRL_MAX_FEATURES)",
+        )
+
+
+def check_hidden(hidden: Sequence[int], settings: Settings) -> None:
+    """422 at /config/hidden if a hidden layer is wider than `max_hidden_units`."""
+    for i, units in enumerate(hidden):
+        if units > settings.max_hidden_units:
+            raise too_large(
+                f"/config/hidden/{i}",
+                f"asks for {units:,} hidden units; at most {settings.max_hidden_units:,} (METAIRL_MAX_HIDDEN_UNITS)",
+            )

@@ -1,0 +1,140 @@
+"""Engine, sessions and migrations for SQLite (default, a file in data_dir) and PostgreSQL."""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import re
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from sqlalchemy import Connection, Engine, create_engine, event, inspect, text
+from sqlalchemy.orm import Session, sessionmaker
+
+from service.settings import Settings
+
+if TYPE_CHECKING:
+    from alembic.config import Config
+
+MIGRATIONS_DIR = Path(__file__).parent / "migrations"
+SQLITE_BUSY_TIMEOUT_MS = 30_000
+PG_MIGRATION_LOCK = 0x6D6574616972_6C
+"""PostgreSQL advisory-lock key held while migrating (any constant shared by all processes)."""
+_THREAD_LOCK = threading.Lock()
+"""Alembic's `context` is process-global: one migration at a time per process."""
+
+
+def make_engine(settings: Settings, *, pre_ping: bool = False) -> Engine:
+    """An engine for the configured database (SQLite: WAL, foreign keys, busy timeout; PostgreSQL: a pool of
+    `db_pool_size` connections recycled after `db_pool_recycle_s`).
+
+    `pre_ping` tests each connection with a round trip when it is checked out: the worker (seconds between
+    writes, on long-lived connections) asks for it; the API does not, because it would double the round trips
+    of a short request. A connection that died anyway (the server restarted) fails its request with a 503
+    problem (`service.problems`), and SQLAlchemy then drops every older pooled connection, so the next
+    requests reconnect.
+    """
+    url = settings.resolved_database_url
+    if url.startswith("sqlite"):
+        database = url.split("///", 1)[1] if "///" in url else ""
+        if database and database != ":memory:":
+            Path(database).parent.mkdir(parents=True, exist_ok=True)
+        engine = create_engine(
+            url, connect_args={"check_same_thread": False, "timeout": SQLITE_BUSY_TIMEOUT_MS / 1000}
+        )
+        event.listen(engine, "connect", _sqlite_pragmas)
+        return engine
+    return create_engine(
+        url,
+        pool_pre_ping=pre_ping,
+        pool_size=settings.db_pool_size,
+        max_overflow=settings.db_max_overflow,
+        pool_recycle=settings.db_pool_recycle_s,
+    )
+
+
+def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
+    """Per-connection SQLite settings: write-ahead log (readers never block the writer), foreign keys on."""
+    cursor = dbapi_connection.cursor()
+    cursor.execute("PRAGMA journal_mode=WAL")
+    cursor.execute("PRAGMA foreign_keys=ON")
+    cursor.execute(f"PRAGMA busy_timeout={SQLITE_BUSY_TIMEOUT_MS}")
+    cursor.execute("PRAGMA synchronous=NORMAL")
+    cursor.close()
+
+
+def make_sessionmaker(engine: Engine) -> sessionmaker[Session]:
+    """Sessions whose objects stay readable after commit (routes serialise them after committing)."""
+    return sessionmaker(engine, expire_on_commit=False)
+
+
+def alembic_config(connection: Connection) -> Config:
+    """Alembic's configuration built in code (no alembic.ini), running on `connection`."""
+    from alembic.config import Config
+
+    config = Config()
+    config.set_main_option("script_location", str(MIGRATIONS_DIR).replace("%", "%%"))
+    config.attributes["connection"] = connection
+    return config
+
+
+def migrate(engine: Engine) -> None:
+    """Upgrade the database to the newest revision; safe when several processes (or threads) start at once.
+
+    A database already at the newest revision is left alone without importing Alembic (an API process then
+    never loads it: about 30 MB per process).
+    """
+    if is_current(engine):
+        return
+    from alembic import command
+
+    with _THREAD_LOCK, _migration_lock(engine), engine.connect() as connection:
+        if engine.dialect.name == "postgresql":
+            connection.execute(text("SELECT pg_advisory_xact_lock(:key)"), {"key": PG_MIGRATION_LOCK})
+        command.upgrade(alembic_config(connection), "head")
+        connection.commit()
+
+
+_REVISION = re.compile(r"""^(down_revision|revision)\s*(?::[^=]+)?=\s*(?:["']([^"']+)["']|None)""", re.M)
+
+
+def head_revision() -> str | None:
+    """The newest migration's revision id, read from the files in migrations/versions (no Alembic import);
+    None unless there is exactly one head."""
+    revisions: set[str] = set()
+    parents: set[str] = set()
+    for path in (MIGRATIONS_DIR / "versions").glob("*.py"):
+        for name, value in _REVISION.findall(path.read_text(encoding="utf-8")):
+            if value:
+                (revisions if name == "revision" else parents).add(value)
+    heads = revisions - parents
+    return heads.pop() if len(heads) == 1 else None
+
+
+def is_current(engine: Engine) -> bool:
+    """Whether the database is stamped with exactly the newest revision."""
+    head = head_revision()
+    if head is None:
+        return False
+    with engine.connect() as connection:
+        if not inspect(connection).has_table("alembic_version"):
+            return False
+        stamped = connection.execute(text("SELECT version_num FROM alembic_version")).scalars().all()
+    return list(stamped) == [head]
+
+
+@contextlib.contextmanager
+def _migration_lock(engine: Engine) -> Iterator[None]:
+    """For a SQLite file, an exclusive lock on a sibling lock file; PostgreSQL locks inside the transaction."""
+    database = engine.url.database
+    if engine.dialect.name != "sqlite" or not database or database == ":memory:":
+        yield
+        return
+    with open(f"{database}.migrate.lock", "a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)

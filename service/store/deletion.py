@@ -1,0 +1,178 @@
+"""Deleting a demonstrator, task, MDP or job with everything derived from it (docs/api.md, "Deleting").
+
+Each function takes a session, deletes rows and the blobs no remaining row refers to, flushes, and never
+commits (the route does). A deletion that would pull the rug from under a queued or running job, or
+leave a task or recording without its MDP, raises `Conflict` before anything is deleted.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Iterable
+
+from sqlalchemy import delete, select
+from sqlalchemy.orm import Session
+
+from service.jobs.status import JobStatus
+from service.problems import Conflict
+from service.store.models.blobs import Blob
+from service.store.models.demonstrators import Demonstration, Demonstrator, Task, TrueReward
+from service.store.models.jobs import Job, JobEvent, Reward
+from service.store.models.mdps import Mdp
+from service.store.models.recordings import Recording
+
+ACTIVE = (JobStatus.QUEUED.value, JobStatus.RUNNING.value)
+"""Statuses of a job whose inputs must not be deleted (and that cannot be deleted itself)."""
+
+BLOB_COLUMNS = (
+    Demonstration.states_blob_id,
+    Demonstration.actions_blob_id,
+    Demonstration.lengths_blob_id,
+    TrueReward.blob_id,
+    Recording.samples_blob_id,
+    Recording.instructions_blob_id,
+    Reward.reward_blob_id,
+    Reward.value_blob_id,
+    Reward.policy_blob_id,
+)
+"""Every column that refers to a blob (MDPs refer to theirs through the JSON `array_blobs`)."""
+
+
+def delete_job(session: Session, job: Job) -> None:
+    """Delete a finished job with its events, rewards and their arrays; 409 while it is queued or running."""
+    _refuse_active([job], what=f"job {job.id}")
+    _delete_jobs(session, [job.id])
+
+
+def delete_task(session: Session, task: Task) -> None:
+    """Delete a task with its demonstrations, true reward and every job that fitted it (their rewards and
+    events too); 409 while such a job is queued or running."""
+    jobs = [job for job in _jobs_of(session, task.demonstrator_id) if task.id in job.task_ids]
+    _refuse_active(jobs, what=f"task {task.id}")
+    _delete_jobs(session, [job.id for job in jobs])
+    _delete_tasks(session, [task.id])
+
+
+def delete_demonstrator(session: Session, demonstrator: Demonstrator) -> None:
+    """Delete a demonstrator with its tasks, demonstrations, true rewards, recordings and jobs (their
+    rewards and events too); 409 while one of its jobs is queued or running."""
+    jobs = _jobs_of(session, demonstrator.id)
+    _refuse_active(jobs, what=f"demonstrator {demonstrator.id}")
+    _delete_jobs(session, [job.id for job in jobs])
+    recordings = list(
+        session.execute(
+            select(Recording.id, Recording.samples_blob_id, Recording.instructions_blob_id).where(
+                Recording.demonstrator_id == demonstrator.id
+            )
+        )
+    )
+    if recordings:
+        session.execute(delete(Recording).where(Recording.id.in_([r.id for r in recordings])))
+    task_ids = list(session.execute(select(Task.id).where(Task.demonstrator_id == demonstrator.id)).scalars())
+    _delete_tasks(session, task_ids, also_blobs=[b for r in recordings for b in (r[1], r[2])])
+    session.execute(delete(Demonstrator).where(Demonstrator.id == demonstrator.id))
+    session.flush()
+
+
+def delete_mdp(session: Session, mdp: Mdp) -> None:
+    """Delete an MDP and its arrays; 409 while a task or recording still uses it."""
+    users = list(session.execute(select(Task.id).where(Task.mdp_id == mdp.id).limit(6)).scalars())
+    users += list(session.execute(select(Recording.id).where(Recording.mdp_id == mdp.id).limit(6)).scalars())
+    if users:
+        shown = ", ".join(users[:5]) + (", …" if len(users) > 5 else "")
+        raise Conflict(
+            f"MDP {mdp.id} is still used by {shown}; delete those tasks or recordings (or their "
+            "demonstrator) first."
+        )
+    blobs = list(mdp.array_blobs.values())
+    session.execute(delete(Mdp).where(Mdp.id == mdp.id))
+    session.flush()
+    _delete_unreferenced_blobs(session, blobs, lab_id=mdp.lab_id)
+
+
+def _jobs_of(session: Session, demonstrator_id: str) -> list[Job]:
+    """All jobs of a demonstrator."""
+    return list(session.execute(select(Job).where(Job.demonstrator_id == demonstrator_id)).scalars())
+
+
+def _refuse_active(jobs: Iterable[Job], *, what: str) -> None:
+    """409 naming the queued or running jobs among `jobs`."""
+    active = [job for job in jobs if job.status in ACTIVE]
+    if active:
+        shown = ", ".join(f"{job.id} ({job.status})" for job in active[:5])
+        raise Conflict(
+            f"Cannot delete {what}: job {shown} is still queued or running; cancel it "
+            "(POST /v1/jobs/{id}/cancel) and delete again once it has stopped."
+        )
+
+
+def _delete_jobs(session: Session, job_ids: Collection[str]) -> None:
+    """Delete finished jobs with their events, rewards and reward arrays; 409 if one became active meanwhile."""
+    if not job_ids:
+        return
+    blobs = [
+        b
+        for row in session.execute(
+            select(Reward.reward_blob_id, Reward.value_blob_id, Reward.policy_blob_id).where(
+                Reward.job_id.in_(job_ids)
+            )
+        )
+        for b in row
+    ]
+    session.execute(delete(Reward).where(Reward.job_id.in_(job_ids)))
+    session.execute(delete(JobEvent).where(JobEvent.job_id.in_(job_ids)))
+    # Conditional: a job re-queued by the reaper since we looked is not deleted (and the whole request fails).
+    deleted = session.execute(
+        delete(Job)
+        .where(Job.id.in_(job_ids), Job.status.not_in(ACTIVE))
+        .execution_options(synchronize_session=False)
+    ).rowcount  # type: ignore[attr-defined]
+    if deleted != len(job_ids):
+        raise Conflict("A job became queued or running while it was being deleted; try again.")
+    lab_id = session.execute(select(Blob.lab_id).where(Blob.id.in_(blobs)).limit(1)).scalar()
+    session.flush()
+    if lab_id is not None:
+        _delete_unreferenced_blobs(session, blobs, lab_id=lab_id)
+
+
+def _delete_tasks(
+    session: Session, task_ids: Collection[str], *, also_blobs: Iterable[str | None] = ()
+) -> None:
+    """Delete tasks with their demonstrations and true rewards (their jobs must be gone already)."""
+    blobs: list[str | None] = list(also_blobs)
+    if task_ids:
+        for row in session.execute(
+            select(
+                Demonstration.states_blob_id, Demonstration.actions_blob_id, Demonstration.lengths_blob_id
+            ).where(Demonstration.task_id.in_(task_ids))
+        ):
+            blobs += list(row)
+        blobs += list(
+            session.execute(select(TrueReward.blob_id).where(TrueReward.task_id.in_(task_ids))).scalars()
+        )
+        session.execute(delete(Reward).where(Reward.task_id.in_(task_ids)))
+        session.execute(delete(Demonstration).where(Demonstration.task_id.in_(task_ids)))
+        session.execute(delete(TrueReward).where(TrueReward.task_id.in_(task_ids)))
+        session.execute(delete(Task).where(Task.id.in_(task_ids)))
+    session.flush()
+    candidates = [b for b in blobs if b is not None]
+    if candidates:
+        lab_id = session.execute(select(Blob.lab_id).where(Blob.id.in_(candidates)).limit(1)).scalar_one()
+        _delete_unreferenced_blobs(session, candidates, lab_id=lab_id)
+
+
+def _delete_unreferenced_blobs(session: Session, blob_ids: Iterable[str | None], *, lab_id: str) -> None:
+    """Delete those of `blob_ids` that no remaining row refers to (a blob may be shared; never pickled)."""
+    candidates = {b for b in blob_ids if b is not None}
+    if not candidates:
+        return
+    referenced: set[str] = set()
+    for column in BLOB_COLUMNS:
+        referenced |= {
+            b for b in session.execute(select(column).where(column.in_(candidates))).scalars() if b
+        }
+    for array_blobs in session.execute(select(Mdp.array_blobs).where(Mdp.lab_id == lab_id)).scalars():
+        referenced |= set(array_blobs.values()) & candidates
+    orphans = candidates - referenced
+    if orphans:
+        session.execute(delete(Blob).where(Blob.id.in_(orphans)))
+    session.flush()

@@ -1,0 +1,56 @@
+"""Reading a lab's jobs and a job's event log (the writes are `service.jobs`: submit and transitions)."""
+
+from __future__ import annotations
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from service.jobs.status import JobStatus
+from service.store.models.jobs import Job, JobEvent
+from service.store.owned import get_owned
+from service.store.paging import PageParams, RowPage, paginate
+
+
+def get_job(session: Session, job_id: str, *, lab_id: str) -> Job:
+    """The lab's job, or 404."""
+    return get_owned(session, Job, job_id, lab_id=lab_id, what="job")
+
+
+def list_jobs(
+    session: Session,
+    *,
+    lab_id: str,
+    page: PageParams,
+    status: JobStatus | None = None,
+    demonstrator_id: str | None = None,
+) -> RowPage[Job]:
+    """One page of the lab's jobs, newest first, optionally only those in `status` or of one demonstrator."""
+    query = select(Job).where(Job.lab_id == lab_id)
+    if status is not None:
+        query = query.where(Job.status == status.value)
+    if demonstrator_id is not None:
+        query = query.where(Job.demonstrator_id == demonstrator_id)
+    return paginate(session, query, page, key=(Job.created_at, Job.id))
+
+
+def list_events(session: Session, job: Job, *, page: PageParams) -> RowPage[JobEvent]:
+    """One page of the job's event log, oldest first."""
+    query = select(JobEvent).where(JobEvent.job_id == job.id)
+    return paginate(session, query, page, key=(JobEvent.id,), newest_first=False)
+
+
+def events_after(session: Session, job_id: str, *, after_id: int, limit: int) -> list[JobEvent]:
+    """Up to ``limit`` events of the job with an id above ``after_id``, oldest first (the event stream)."""
+    query = (
+        select(JobEvent)
+        .where(JobEvent.job_id == job_id, JobEvent.id > after_id)
+        .order_by(JobEvent.id)
+        .limit(limit)
+    )
+    return list(session.execute(query).scalars())
+
+
+def job_status(session: Session, job_id: str) -> JobStatus | None:
+    """The job's status now (None if it was deleted meanwhile)."""
+    value = session.execute(select(Job.status).where(Job.id == job_id)).scalar_one_or_none()
+    return None if value is None else JobStatus(value)

@@ -1,0 +1,62 @@
+"""What a fit reads from the database: a task's MDP, trajectories and true reward, as engine objects.
+
+Used by the worker; numpy only (rows were validated at upload, so nothing is re-checked here).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from metairl_engine import MDP, Layout, SparseTransitions, Trajectory
+from service.store.blobs import get_array
+from service.store.models.demonstrators import Demonstration, TrueReward
+from service.store.models.mdps import Mdp
+
+
+def load_mdp(session: Session, mdp_id: str) -> MDP:
+    """The stored MDP `mdp_id` as the engine's `MDP` (arrays read from blobs)."""
+    row = session.get_one(Mdp, mdp_id)
+    arrays = {name: get_array(session, blob_id) for name, blob_id in row.array_blobs.items()}
+    sparse = None
+    if row.transitions == "sparse":
+        sparse = SparseTransitions(s=arrays["s"], a=arrays["a"], next=arrays["next"], p=arrays["p"])
+    return MDP(
+        n_states=row.n_states,
+        n_actions=row.n_actions,
+        gamma=row.gamma,
+        features=arrays.get("features"),
+        next_state=arrays.get("next_state"),
+        sparse=sparse,
+        layout=Layout(**row.layout) if row.layout else None,
+    )
+
+
+def load_trajectories(session: Session, task_id: str) -> list[Trajectory]:
+    """Every trajectory of task `task_id`, upload batches in the order they were added."""
+    batches = session.execute(
+        select(Demonstration)
+        .where(Demonstration.task_id == task_id)
+        .order_by(Demonstration.created_at, Demonstration.id)
+    ).scalars()
+    out: list[Trajectory] = []
+    for batch in batches:
+        states = get_array(session, batch.states_blob_id).astype(np.int64)
+        actions = get_array(session, batch.actions_blob_id).astype(np.int64)
+        lengths = get_array(session, batch.lengths_blob_id)
+        state_ends = np.cumsum(lengths[:, 0])
+        action_ends = np.cumsum(lengths[:, 1])
+        out += [
+            Trajectory(states=s, actions=a)
+            for s, a in zip(
+                np.split(states, state_ends[:-1]), np.split(actions, action_ends[:-1]), strict=True
+            )
+        ]
+    return out
+
+
+def load_true_reward(session: Session, task_id: str) -> np.ndarray | None:
+    """The true reward (float32, length n_states) of task `task_id`, or None if none was given."""
+    row = session.get(TrueReward, task_id)
+    return None if row is None else get_array(session, row.blob_id)

@@ -1,0 +1,325 @@
+"""Centre-of-pressure recordings → tasks and demonstrations of a demonstrator (docs/motion.md; docs/api.md, "Centre-of-pressure recordings").
+
+A recording (JSON rows or a CSV file with columns ``t,x,y[,instruction]``) is validated and cut by the engine
+(`metairl_engine.motion`: samples → cells and directions, skipped cells filled, pauses dropped, segments at
+peaks of the distance from the origin, labelled by instruction or direction). Each label becomes, or joins,
+the demonstrator's task of that name on the same MDP, and its segments are stored as one demonstration batch.
+
+Everything an upload writes (a velocity grid it creates, tasks, demonstrations, the recording row) goes in
+the caller's ONE transaction (nothing here commits), so a failure anywhere rolls the whole upload back. The
+samples are parsed by `service.files.recording_samples`. numpy only: the API process never imports torch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from sqlalchemy import select, update
+from sqlalchemy.orm import Session
+
+from metairl_engine import InvalidInput
+from metairl_engine.demos import Trajectory
+from metairl_engine.grids import DIRECTION_NAMES
+from metairl_engine.motion import (
+    NO_INSTRUCTION,
+    Bounds,
+    DiscretiseSettings,
+    Recording,
+    SegmentSettings,
+    demonstrations,
+)
+from service.api.schemas.mdps import GridMdpIn
+from service.api.schemas.recordings import RecordingOptions, RecordingTask
+from service.files.recording_samples import Samples
+from service.problems import Conflict, Unprocessable
+from service.store import mdps
+from service.store.blobs import get_array, put_array
+from service.store.demonstrations import add_demonstrations
+from service.store.ids import new_id
+from service.store.models.demonstrators import Demonstration, Demonstrator, Task
+from service.store.models.mdps import Mdp
+from service.store.models.recordings import Recording as RecordingRow
+from service.store.owned import get_owned
+from service.store.paging import PageParams, RowPage, paginate
+from service.store.tasks import create_task
+
+
+def _invalid(pointer: str, message: str) -> Unprocessable:
+    """A 422 with one error."""
+    return Unprocessable(
+        f"The recording is invalid. {pointer}: {message}", errors=[{"pointer": pointer, "message": message}]
+    )
+
+
+@dataclass(frozen=True)
+class Target:
+    """The MDP a recording maps onto: an existing row, or (``row`` None) ``grid`` to create in the upload."""
+
+    row: Mdp | None
+    grid: GridMdpIn | None
+    width: int
+    height: int
+
+
+def _target(session: Session, options: RecordingOptions, *, lab_id: str) -> Target:
+    """Resolve ``mdp_id`` (a velocity grid of the lab) or ``grid`` (reuse an identical grid, else create)."""
+    if options.mdp_id is not None and options.grid is None:
+        row = _velocity_mdp(session, options.mdp_id, lab_id=lab_id)
+        assert row.layout is not None
+        return Target(row=row, grid=None, width=row.layout["width"], height=row.layout["height"])
+    if options.grid is None or options.mdp_id is not None:
+        raise _invalid("/mdp_id", 'give either "mdp_id" (a velocity-grid MDP) or "grid" (width, height)')
+    g = options.grid
+    body = GridMdpIn(
+        kind="grid",
+        name=f"velocity grid {g.width}×{g.height}",
+        width=g.width,
+        height=g.height,
+        velocity=True,
+        gamma=g.gamma,
+    )
+    return Target(row=_existing_grid(session, body, lab_id=lab_id), grid=body, width=g.width, height=g.height)
+
+
+def _velocity_mdp(session: Session, mdp_id: str, *, lab_id: str) -> Mdp:
+    """The lab's MDP `mdp_id` if it is a velocity grid (a layout with 8 channels covering every state)."""
+    row = session.get(Mdp, mdp_id)
+    if row is None or row.lab_id != lab_id:
+        raise _invalid("/mdp_id", f"no MDP with id {mdp_id!r}")
+    layout = row.layout or {}
+    if layout.get("channels") != 8 or row.n_states != 8 * layout.get("width", 0) * layout.get("height", 0):
+        raise _invalid(
+            "/mdp_id",
+            f"MDP {mdp_id!r} is not a velocity grid (a layout with 8 velocity channels); create one with "
+            'POST /v1/mdps {"kind": "grid", "velocity": true, ...} or send "grid" instead',
+        )
+    return row
+
+
+def _existing_grid(session: Session, body: GridMdpIn, *, lab_id: str) -> Mdp | None:
+    """The lab's oldest grid MDP built with exactly these parameters, if any."""
+    wanted = body.model_dump(exclude={"kind", "name", "gamma"}) | {"moves": 8}
+    rows = session.execute(
+        select(Mdp)
+        .where(Mdp.lab_id == lab_id, Mdp.source == "grid", Mdp.gamma == body.gamma)
+        .order_by(Mdp.created_at, Mdp.id)
+    ).scalars()
+    return next((r for r in rows if r.grid == wanted), None)
+
+
+def _mdp_id(session: Session, target: Target, *, lab_id: str) -> str:
+    """The id of the target MDP, creating the grid first if the lab has none like it."""
+    if target.row is not None:
+        return target.row.id
+    assert target.grid is not None
+    mdp, params = mdps.build_grid(target.grid)
+    return mdps.create_mdp(
+        session, lab_id=lab_id, name=target.grid.name, source="grid", mdp=mdp, grid=params
+    ).id
+
+
+def _task_for(
+    session: Session, demonstrator: Demonstrator, *, label: str, mdp_id: str, recording_id: str
+) -> tuple[Task, bool]:
+    """The demonstrator's task named `label` on `mdp_id` (oldest first), or a new one; and whether it is new.
+
+    A task of that name on another MDP is a 409: tasks fitted together must share one state space.
+    """
+    same_name = (
+        session.execute(
+            select(Task)
+            .where(
+                Task.demonstrator_id == demonstrator.id,
+                Task.lab_id == demonstrator.lab_id,
+                Task.name == label,
+            )
+            .order_by(Task.created_at, Task.id)
+        )
+        .scalars()
+        .all()
+    )
+    joined = next((task for task in same_name if task.mdp_id == mdp_id), None)
+    if joined is not None:
+        return joined, False
+    if same_name:
+        raise Conflict(
+            f"Task {same_name[0].id!r} ({label!r}) of this demonstrator is on MDP {same_name[0].mdp_id!r}, "
+            f"not {mdp_id!r}; upload onto that MDP or use another demonstrator."
+        )
+    created = create_task(
+        session,
+        demonstrator,
+        name=label,
+        mdp_id=mdp_id,
+        metadata={"direction": label, "recording_id": recording_id},
+    )
+    return created, True
+
+
+def lock_demonstrator(session: Session, demonstrator_id: str) -> None:
+    """Hold the demonstrator's row until the transaction ends, so concurrent uploads find or create its tasks
+    one at a time (two uploads with a new label join one task). A no-op UPDATE: a row lock on PostgreSQL, the
+    write lock taken before any read on SQLite."""
+    session.execute(update(Demonstrator).where(Demonstrator.id == demonstrator_id).values(id=Demonstrator.id))
+
+
+def add_recording(
+    session: Session, demonstrator: Demonstrator, options: RecordingOptions, samples: Samples
+) -> RecordingRow:
+    """Validate and cut the recording, then add grid, tasks, demonstrations and the recording row.
+
+    The demonstrator's row is locked first (`lock_demonstrator`) until the caller's transaction ends."""
+    lab_id = demonstrator.lab_id
+    target = _target(session, options, lab_id=lab_id)
+    discretise = DiscretiseSettings(
+        width=target.width, height=target.height, smooth_s=options.discretise.smooth_s
+    )
+    try:
+        rec = Recording.build(
+            t=samples.t, x=samples.x, y=samples.y, bounds=options.bounds, instruction=samples.instruction
+        )
+        cut = demonstrations(rec, discretise_settings=discretise, segment_settings=options.segment)
+    except InvalidInput as exc:
+        raise samples.located(exc) from exc
+    recording_id = new_id("rec")
+    lock_demonstrator(session, demonstrator.id)
+    mdp_id = _mdp_id(session, target, lab_id=lab_id)
+    tasks = []
+    for label, trajectories in cut.by_label.items():
+        task, created = _task_for(
+            session, demonstrator, label=label, mdp_id=mdp_id, recording_id=recording_id
+        )
+        batch = add_demonstrations(session, task, trajectories, fmt=samples.format)
+        tasks.append(
+            RecordingTask(
+                label=label,
+                task_id=task.id,
+                created=created,
+                demonstration_id=batch.id,
+                n_trajectories=batch.n_trajectories,
+                n_steps=batch.n_steps,
+            )
+        )
+    row = RecordingRow(
+        id=recording_id,
+        lab_id=lab_id,
+        demonstrator_id=demonstrator.id,
+        mdp_id=mdp_id,
+        name=options.name,
+        format=samples.format,
+        n_samples=len(rec.t),
+        duration=float(rec.t[-1] - rec.t[0]),
+        samples_blob_id=put_array(session, np.stack([rec.t, rec.x, rec.y], axis=1), lab_id=lab_id),
+        instructions_blob_id=None
+        if rec.instruction is None
+        else put_array(session, _instruction_codes(rec.instruction), lab_id=lab_id),
+        settings={
+            "bounds": asdict(rec.bounds),
+            "discretise": asdict(discretise),
+            "segment": asdict(options.segment),
+        },
+        summary={
+            "mdp_created": target.row is None,
+            "segments": {t.label: t.n_trajectories for t in tasks},
+            "dropped_segments": len(cut.dropped),
+            "dropped_samples": len(rec.t) - len(np.unique(cut.path.sample)),
+            "tasks": [t.model_dump() for t in tasks],
+        },
+    )
+    session.add(row)
+    session.flush()
+    return row
+
+
+def _instruction_codes(instruction: np.ndarray) -> np.ndarray:
+    """Instructions as indices into `DIRECTION_NAMES` (int32), -1 where there was none."""
+    codes = {name: k for k, name in enumerate(DIRECTION_NAMES)} | {NO_INSTRUCTION: -1}
+    return np.array([codes[v] for v in instruction.tolist()], dtype=np.int32)
+
+
+def list_recordings(
+    session: Session, demonstrator: Demonstrator, *, page: PageParams
+) -> RowPage[RecordingRow]:
+    """One page of a demonstrator's recordings, newest first."""
+    query = select(RecordingRow).where(
+        RecordingRow.demonstrator_id == demonstrator.id, RecordingRow.lab_id == demonstrator.lab_id
+    )
+    return paginate(session, query, page, key=(RecordingRow.created_at, RecordingRow.id))
+
+
+def get_recording(session: Session, recording_id: str, *, lab_id: str) -> RecordingRow:
+    """The lab's recording, or 404."""
+    return get_owned(session, RecordingRow, recording_id, lab_id=lab_id, what="recording")
+
+
+def demonstrator_recordings(session: Session, demonstrator: Demonstrator) -> list[RecordingRow]:
+    """Every recording of a demonstrator, oldest first."""
+    query = (
+        select(RecordingRow)
+        .where(RecordingRow.demonstrator_id == demonstrator.id, RecordingRow.lab_id == demonstrator.lab_id)
+        .order_by(RecordingRow.created_at, RecordingRow.id)
+    )
+    return list(session.execute(query).scalars())
+
+
+def load_recording(session: Session, row: RecordingRow) -> tuple[Recording, SegmentSettings]:
+    """The stored samples of a recording as the engine's `Recording` (instructions by name), and the segment
+    settings it was cut with (so a readout finds the same movements as the upload)."""
+    samples = get_array(session, row.samples_blob_id).astype(np.float64)
+    instruction = None
+    if row.instructions_blob_id is not None:
+        codes = get_array(session, row.instructions_blob_id)
+        names = np.array([*DIRECTION_NAMES, NO_INSTRUCTION], dtype=object)
+        instruction = names[np.where(codes < 0, len(DIRECTION_NAMES), codes)].astype(str)
+    rec = Recording(
+        t=samples[:, 0],
+        x=samples[:, 1],
+        y=samples[:, 2],
+        bounds=Bounds(**row.settings["bounds"]),
+        instruction=instruction,
+    )
+    raw = dict(row.settings.get("segment", {}))
+    if raw.get("origin") is not None:
+        raw["origin"] = tuple(raw["origin"])
+    if "directions" in raw:
+        raw["directions"] = tuple(raw["directions"])
+    return rec, SegmentSettings(**raw)
+
+
+@dataclass(frozen=True)
+class CutSegment:
+    """One demonstration a recording was cut into: its label (task name), task, batch and trajectory."""
+
+    label: str
+    task_id: str
+    demonstration_id: str
+    index: int
+    """Position within the label's segments of this recording (time order)."""
+    trajectory: Trajectory
+
+
+def recording_demonstrations(session: Session, row: RecordingRow) -> list[CutSegment]:
+    """The demonstrations the upload of `row` stored, label by label in upload order; batches deleted since
+    (with their task) are left out."""
+    out = []
+    for entry in row.summary.get("tasks", []):
+        batch = session.get(Demonstration, entry["demonstration_id"])
+        if batch is None or batch.lab_id != row.lab_id:
+            continue
+        states = get_array(session, batch.states_blob_id).astype(np.int64)
+        actions = get_array(session, batch.actions_blob_id).astype(np.int64)
+        lengths = get_array(session, batch.lengths_blob_id)
+        state_ends, action_ends = np.cumsum(lengths[:, 0]), np.cumsum(lengths[:, 1])
+        pieces = zip(np.split(states, state_ends[:-1]), np.split(actions, action_ends[:-1]), strict=True)
+        out += [
+            CutSegment(
+                label=entry["label"],
+                task_id=entry["task_id"],
+                demonstration_id=batch.id,
+                index=k,
+                trajectory=Trajectory(states=s, actions=a),
+            )
+            for k, (s, a) in enumerate(pieces)
+        ]
+    return out

@@ -1,0 +1,217 @@
+"""`GET /v1/jobs/{id}/events` as Server-Sent Events: replay and end, resume with Last-Event-ID, other labs."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from fastapi import FastAPI
+from fastapi.testclient import TestClient
+
+from service.jobs.status import JobStatus
+from service.jobs.transitions import claim, transition
+from service.store.models.base import utcnow
+from service.store.models.jobs import JobEvent
+from tests.service.helpers import add_demonstrations, created, make_task
+
+SSE = {"Accept": "text/event-stream"}
+
+
+def finished_job(app: FastAPI, client: TestClient, auth: dict[str, str]) -> str:
+    """A job that was claimed, reported two progress points and succeeded (written as the worker would)."""
+    task = make_task(client, auth)
+    add_demonstrations(client, auth, task["id"])
+    job_id = created(
+        client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
+    )["id"]
+    with app.state.sessionmaker() as session:
+        attempt = claim(session, job_id)
+        assert attempt == 1
+        for step in (10, 20):
+            progress = {"step": step, "max_steps": 20, "loss": 1.0 / step, "irl_loss": 1.0 / step}
+            session.add(
+                JobEvent(
+                    job_id=job_id,
+                    at=utcnow(),
+                    kind="progress",
+                    attempt=attempt,
+                    **progress,
+                    sharing_loss=0.0,
+                    elapsed_s=0.1 * step,
+                )
+            )
+        transition(session, job_id, JobStatus.RUNNING, JobStatus.SUCCEEDED, message="finished after 20 steps")
+        session.commit()
+    return job_id
+
+
+def parse_sse(text: str) -> list[dict[str, Any]]:
+    """The messages of an SSE body: each with its ``id``, ``event`` and parsed ``data`` (comments dropped)."""
+    messages = []
+    for block in text.split("\n\n"):
+        fields: dict[str, Any] = {}
+        for line in block.splitlines():
+            if not line or line.startswith(":"):
+                continue
+            name, _, value = line.partition(":")
+            fields[name] = value.removeprefix(" ")
+        if "data" in fields:
+            fields["data"] = json.loads(fields["data"])
+            messages.append(fields)
+    return messages
+
+
+def test_a_finished_jobs_stream_replays_every_event_and_ends(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    job_id = finished_job(app, client, auth)
+    response = client.get(f"/v1/jobs/{job_id}/events", headers=auth | SSE)
+    assert response.status_code == 200, response.text
+    assert response.headers["content-type"].startswith("text/event-stream")
+    assert "retry: " in response.text
+    messages = parse_sse(response.text)
+    kinds = [(m["event"], m["data"].get("status"), m["data"].get("step")) for m in messages]
+    assert kinds == [
+        ("status", "queued", None),
+        ("status", "running", None),
+        ("progress", None, 10),
+        ("progress", None, 20),
+        ("status", "succeeded", None),
+    ]
+    assert [int(m["id"]) for m in messages] == [m["data"]["id"] for m in messages]
+    # The same events as the JSON list, which stays the default without the Accept header.
+    listed = created(client.get(f"/v1/jobs/{job_id}/events", headers=auth), 200)["data"]
+    assert [e["id"] for e in listed] == [m["data"]["id"] for m in messages]
+    assert messages[1]["data"] == {k: v for k, v in listed[1].items() if v is not None}
+
+
+def test_last_event_id_resumes_after_that_event(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    job_id = finished_job(app, client, auth)
+    every = parse_sse(client.get(f"/v1/jobs/{job_id}/events", headers=auth | SSE).text)
+    first_progress = next(m for m in every if m["event"] == "progress")
+    resumed = client.get(
+        f"/v1/jobs/{job_id}/events", headers=auth | SSE | {"Last-Event-ID": first_progress["id"]}
+    )
+    rest = parse_sse(resumed.text)
+    assert [m["id"] for m in rest] == [m["id"] for m in every if int(m["id"]) > int(first_progress["id"])]
+    assert rest[0]["event"] == "progress" and rest[-1]["data"]["status"] == "succeeded"
+    # After the terminal event there is nothing left: the stream ends at once, empty.
+    after_end = client.get(
+        f"/v1/jobs/{job_id}/events", headers=auth | SSE | {"Last-Event-ID": every[-1]["id"]}
+    )
+    assert after_end.status_code == 200 and parse_sse(after_end.text) == []
+
+
+def test_another_labs_job_stream_is_404(
+    app: FastAPI, client: TestClient, auth: dict[str, str], auth_b: dict[str, str]
+) -> None:
+    job_id = finished_job(app, client, auth)
+    response = client.get(f"/v1/jobs/{job_id}/events", headers=auth_b | SSE)
+    assert response.status_code == 404
+    assert response.headers["content-type"].startswith("application/problem+json")
+
+
+def test_a_running_jobs_stream_delivers_new_events_and_ends_at_the_final_status(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    """The stream stays open on a running job and ends once a later write finishes it."""
+    import threading
+    import time
+
+    task = make_task(client, auth)
+    add_demonstrations(client, auth, task["id"])
+    job_id = created(
+        client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
+    )["id"]
+
+    def finish_later() -> None:
+        time.sleep(1.0)
+        with app.state.sessionmaker() as session:
+            claim(session, job_id)
+            session.commit()
+        time.sleep(0.5)
+        with app.state.sessionmaker() as session:
+            transition(
+                session, job_id, JobStatus.RUNNING, JobStatus.CANCELLED, message="cancelled on request"
+            )
+            session.commit()
+
+    writer = threading.Thread(target=finish_later)
+    writer.start()
+    started = time.monotonic()
+    messages = parse_sse(client.get(f"/v1/jobs/{job_id}/events", headers=auth | SSE).text)
+    writer.join()
+    assert time.monotonic() - started >= 1.0
+    assert [m["data"]["status"] for m in messages] == ["queued", "running", "cancelled"]
+
+
+def test_client_wait_follows_the_stream_and_falls_back_to_polling(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    import io
+    import threading
+    import time
+
+    import httpx
+
+    from metairl_client import Client
+
+    task = make_task(client, auth)
+    add_demonstrations(client, auth, task["id"])
+    job_id = created(
+        client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
+    )["id"]
+
+    def finish_later() -> None:
+        time.sleep(1.0)
+        with app.state.sessionmaker() as session:
+            attempt = claim(session, job_id)
+            session.add(
+                JobEvent(
+                    job_id=job_id,
+                    at=utcnow(),
+                    kind="progress",
+                    attempt=attempt,
+                    step=5,
+                    max_steps=10,
+                    loss=1.0,
+                    irl_loss=1.0,
+                    sharing_loss=0.0,
+                    elapsed_s=0.5,
+                )
+            )
+            session.commit()
+        time.sleep(0.5)
+        with app.state.sessionmaker() as session:
+            transition(
+                session, job_id, JobStatus.RUNNING, JobStatus.FAILED, values={"error": "no"}, message="no"
+            )
+            session.commit()
+
+    requests: list[str] = []
+    client.headers.update(auth)
+    client.event_hooks["request"].append(lambda r: requests.append(f"{r.method} {r.url.path}"))
+    writer = threading.Thread(target=finish_later)
+    writer.start()
+    bar = io.StringIO()
+    state = Client(client).wait(job_id, poll_s=0.1, stream=bar)
+    writer.join()
+    assert (state.status, state.error) == ("failed", "no")
+    assert "[###############---------------]     5/10" in bar.getvalue()
+    # One request for the stream, one before and one after it: no polling.
+    assert requests == [f"GET /v1/jobs/{job_id}", f"GET /v1/jobs/{job_id}/events", f"GET /v1/jobs/{job_id}"]
+
+    # A server without the stream (the events route answers JSON) is polled instead.
+    polls = iter(["queued", "running", "succeeded"])
+
+    def old_server(request: httpx.Request) -> httpx.Response:
+        if request.url.path.endswith("/events"):
+            return httpx.Response(200, json={"data": [], "has_more": False, "next_cursor": None})
+        return httpx.Response(
+            200, json={"id": "job_1", "status": next(polls), "progress": None, "error": None}
+        )
+
+    mocked = Client(httpx.Client(transport=httpx.MockTransport(old_server), base_url="http://metairl.test"))
+    assert mocked.wait("job_1", poll_s=0.01, progress=False).status == "succeeded"

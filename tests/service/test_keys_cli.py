@@ -1,0 +1,99 @@
+"""`metairl keys list` and `metairl keys revoke` (docs/api.md, "Conventions": managing keys), and the `local` key that `metairl serve` keeps
+between starts instead of minting a new one each time."""
+
+from __future__ import annotations
+
+import os
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+from fastapi import FastAPI
+from fastapi.testclient import TestClient
+
+from metairl_cli.keys import create_key
+from metairl_cli.serve import LOCAL_KEY_FILE, local_key
+from service.settings import Settings
+from service.store.keys import list_keys, revoke_key, split_key
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def metairl(settings: Settings, *args: str) -> subprocess.CompletedProcess[str]:
+    """Run the `metairl` command on the test's database."""
+    env = os.environ | {
+        "METAIRL_DATA_DIR": str(settings.data_dir),
+        "METAIRL_DATABASE_URL": settings.resolved_database_url,
+    }
+    return subprocess.run(
+        [sys.executable, "-m", "metairl_cli.main", *args],
+        cwd=REPO,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+
+
+def key_id(key: str) -> str:
+    """The public id part of a full key."""
+    parts = split_key(key)
+    assert parts is not None
+    return parts[0]
+
+
+def test_list_shows_each_key_of_a_lab_and_revoke_makes_the_next_request_401(
+    settings: Settings, app: FastAPI, client: TestClient, api_key: str
+) -> None:
+    with app.state.sessionmaker() as session:
+        lab = next(k.lab for k in list_keys(session) if k.id == key_id(api_key))
+        second = create_key(session, lab)
+    auth = {"Authorization": f"Bearer {api_key}"}
+    assert client.get("/v1/demonstrators", headers=auth).status_code == 200
+
+    listed = metairl(settings, "keys", "list", "--lab", lab)
+    assert listed.returncode == 0, listed.stderr
+    lines = listed.stdout.strip().splitlines()
+    assert len(lines) == 2
+    rows = {line.split("\t")[0]: line.split("\t") for line in lines}
+    first_row, second_row = rows[key_id(api_key)], rows[key_id(second)]
+    assert first_row[1] == lab and len(first_row) == 5
+    assert first_row[2].endswith("Z") and first_row[3].endswith("Z") and first_row[4] == "-"
+    assert second_row[3] == "never" and second_row[4] == "-"
+    assert api_key.split("_")[-1] not in listed.stdout  # no secret is ever listed
+
+    revoked = metairl(settings, "keys", "revoke", key_id(api_key))
+    assert revoked.returncode == 0, revoked.stdout + revoked.stderr
+    response = client.get("/v1/demonstrators", headers=auth)
+    assert response.status_code == 401 and "revoked" in response.json()["detail"]
+    assert client.get("/v1/demonstrators", headers={"Authorization": f"Bearer {second}"}).status_code == 200
+    after = {
+        line.split("\t")[0]: line.split("\t")
+        for line in metairl(settings, "keys", "list").stdout.splitlines()
+    }
+    assert after[key_id(api_key)][4].endswith("Z") and after[key_id(second)][4] == "-"
+
+    unknown = metairl(settings, "keys", "revoke", "0123456789abcdef")
+    assert unknown.returncode == 1 and "no API key" in unknown.stdout
+
+
+def test_serve_keeps_the_local_key_and_mints_a_new_one_only_when_it_is_revoked(
+    app: FastAPI, tmp_path: Path
+) -> None:
+    data_dir = tmp_path / "data"
+    with app.state.sessionmaker() as session:
+        before = len(list_keys(session, lab_name="local"))
+        first = local_key(session, data_dir)
+        path = data_dir / LOCAL_KEY_FILE
+        assert path.read_text().strip() == first
+        assert stat.S_IMODE(path.stat().st_mode) == 0o600
+        assert local_key(session, data_dir) == first  # a second start prints the same key
+        assert len(list_keys(session, lab_name="local")) == before + 1
+
+    with app.state.sessionmaker() as session:
+        revoke_key(session, key_id(first))
+        session.commit()
+        third = local_key(session, data_dir)
+        assert third != first and path.read_text().strip() == third
+        assert len(list_keys(session, lab_name="local")) == before + 2
