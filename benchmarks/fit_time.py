@@ -1,4 +1,4 @@
-"""CPU seconds per default fit (8 tasks × 3 demonstrations) on worlds of both terrain generators.
+"""CPU seconds and accuracy per default fit (8 tasks × 3 demonstrations) on worlds of both terrain generators.
 
 Times `fit(…, FitConfig())` of whatever engine is importable, so the same command compares engines: run it
 in this checkout and in a checkout of an earlier commit, one after the other, on a quiet machine::
@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 import metairl_engine  # first, from the checkout that runs this (accuracy.py puts its own root on sys.path)
@@ -21,16 +20,14 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import torch  # noqa: E402
-from accuracy import world_and_tasks  # noqa: E402
+from accuracy import run_one, world_and_tasks  # noqa: E402
 from frozen_terrain import frozen_world_and_tasks  # noqa: E402
 
 from metairl_engine import FitConfig  # noqa: E402
-from metairl_engine.fit import fit  # noqa: E402
-from metairl_engine.results import TaskData  # noqa: E402
 
 
 def main() -> None:
-    """Time one default fit per world and print a row each (CPU s, wall s, steps)."""
+    """Time one default fit per world and print a row each (CPU s, wall s, steps, accuracy), then the means."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repo", type=int, default=3, help="worlds 0 … N−1 of the repo's generator")
     parser.add_argument("--frozen", type=int, default=2, help="worlds 0 … N−1 of the frozen generator")
@@ -41,14 +38,21 @@ def main() -> None:
         ("repo", world_and_tasks, args.repo),
         ("frozen", frozen_world_and_tasks, args.frozen),
     ):
+        rows = []
         for w in range(count):
             world, sims = make(w)
-            tasks = [TaskData(world.mdp, s.trajectories[:3], s.name) for s in sims[:8]]
-            cpu, wall = time.process_time(), time.perf_counter()
-            result = fit(tasks, FitConfig())
+            row = run_one(world, sims, n_tasks=8, n_demos=3, config=FitConfig())
+            rows.append(row)
             print(
-                f"{name} world {w}: {time.process_time() - cpu:.1f} CPU s, "
-                f"{time.perf_counter() - wall:.1f} s, {len(result.history)} steps",
+                f"{name} world {w}: {row['cpu_seconds']:.1f} CPU s, {row['seconds']:.1f} s, "
+                f"{row['steps']} steps, task reward vs truth {row['task_pearson']:.3f}",
+                flush=True,
+            )
+        if rows:
+            mean = {k: sum(r[k] for r in rows) / len(rows) for k in ("cpu_seconds", "steps", "task_pearson")}
+            print(
+                f"{name} mean of {len(rows)}: {mean['cpu_seconds']:.1f} CPU s, {mean['steps']:.0f} steps, "
+                f"task reward vs truth {mean['task_pearson']:.3f}",
                 flush=True,
             )
 

@@ -75,7 +75,7 @@ class FitConfig:
     fit then runs on all steps to ``max_steps`` or ``tolerance``."""
 
     patience: int = 100
-    """Stop this many steps after the last step kept by the held-out rule (only with a hold-out; 0: never)."""
+    """Stop once the held-out NLL has set no new best for this many steps (only with a hold-out; 0: never)."""
 
     ensemble: int = 0
     """Members K of the ensemble: each reward is the mean of K fits run side by side as one batch of T·K

@@ -155,14 +155,15 @@ def test_progress_is_reported_every_step_and_best_step_is_kept() -> None:
     assert result.best_step >= 1 + int(np.argmin(np.array([p.heldout_nll for p in seen], dtype=float)))
 
 
-def test_stopper_keeps_steps_within_one_standard_error_of_the_best_and_then_stops() -> None:
-    stopper = HeldOutStopper(patience=2)
+def test_stopper_keeps_steps_within_one_standard_error_and_stops_when_no_new_best_for_patience_steps() -> None:
+    stopper = HeldOutStopper(patience=3)
     assert stopper.update(1, torch.tensor([1.0, 3.0]))  # best 2.0, standard error 1.414 / √2 = 1.0
-    assert stopper.update(2, torch.tensor([2.4, 3.4]))  # 2.9 ≤ 2.0 + 1.0: kept
-    assert not stopper.update(3, torch.tensor([3.0, 3.2]))
-    assert not stopper.should_stop(3)
-    assert not stopper.update(4, torch.tensor([4.0, 4.0]))
-    assert stopper.should_stop(4) and stopper.kept_step == 2
+    assert stopper.update(2, torch.tensor([2.4, 3.4]))  # 2.9 ≤ 2.0 + 1.0: kept, not a new best
+    assert stopper.update(3, torch.tensor([1.5, 2.1]))  # new best 1.8, standard error 0.3
+    assert not stopper.update(4, torch.tensor([3.0, 3.2]))  # 3.1 > 1.8 + 0.3
+    assert stopper.update(5, torch.tensor([1.9, 2.1]))  # 2.0 ≤ 2.1: kept on the plateau
+    assert not stopper.should_stop(5)
+    assert stopper.should_stop(6) and stopper.kept_step == 5  # three steps without a new best
 
 
 def test_loss_tolerance_stops_only_after_several_flat_steps_in_a_row() -> None:
