@@ -17,6 +17,7 @@ import pytest
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
+from metairl_client import Client
 from metairl_engine.motion import canonical_instruction
 from service.files import c3d
 from service.store.models.recordings import Recording as RecordingRow
@@ -412,3 +413,19 @@ def test_csv_options_for_a_c3d_are_422(client: TestClient, auth: dict[str, str],
         errors[0]["pointer"] == "/plate/rate_hz"
         and "CSV files of forces and moments only" in errors[0]["message"]
     )
+
+
+def test_the_lab_client_uploads_a_c3d_file_and_a_plate_csv(
+    client: TestClient, auth: dict[str, str], tmp_path: Path
+) -> None:
+    client.headers.update(auth)
+    lab = Client(client)
+    dem_id = lab.create_demonstrator(name="force-plate subject")
+    mdp_id = lab.create_mdp({"kind": "grid", "name": "plate", "velocity": True, "gamma": 0.9, **GRID})
+    path = tmp_path / "session.c3d"
+    path.write_bytes(c3d_bytes(tmp_path, COP, events=instruction_events(T, INSTRUCTION)))
+    from_c3d = lab.upload_recording(dem_id, path, mdp_id=mdp_id, bounds=PLATE, name="session 1")
+    assert from_c3d["format"] == "c3d" and from_c3d["segments"] == {"forward": 2, "left": 2}
+    text = plate_csv(**CONVENTIONS[0][1]).encode()
+    from_csv = lab.upload_recording(dem_id, text, mdp_id=mdp_id, bounds=PLATE, plate=CONVENTIONS[0][2])
+    assert from_csv["format"] == "forces" and not any(t["created"] for t in from_csv["tasks"])
