@@ -4,7 +4,7 @@
 ``center_of_pressure_k`` (3, N) and ``corners_k`` (3, 4) in the file's units, and ``meta``, a JSON string with
 the units, rates, first frame and events. ezc3d's C++ parser can crash or hang on a malformed file, so it runs
 here, under a memory limit, and never in the API process; a file it rejects exits with `UNREADABLE` and a
-JSON ``{"stage", "message"}`` on stdout. ezc3d is imported in `read`, so importing this module loads nothing.
+JSON ``{"stage", "message"}`` on stdout. ezc3d is imported in `read`, so importing this module never loads it.
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ import numpy as np
 
 UNREADABLE = 3
 """Exit status for a file ezc3d rejected (an exception, not a crash)."""
-MEMORY_LIMIT_BYTES = 2 * 1024**3
-"""Address space the reader may use; a file that needs more is reported as unreadable."""
+MEMORY_LIMIT_BYTES = 4 * 1024**3
+"""Address space the reader may use, so a file claiming huge sizes fails to read instead of exhausting memory."""
 
 
 class ReadError(Exception):
