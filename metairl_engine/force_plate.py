@@ -36,8 +36,8 @@ MIN_FZ = 20.0
 class PlateAxes:
     """Where the plate's +x and +y axes point, as the patient's directions; +z completes a right-handed frame.
 
-    The default (x right, y forward, so z up) is the recording's own frame. An AMTI or Bertec plate in its own
-    frame (z down) placed with +y forward has x = ``left``.
+    The default (x right, y forward, so z up) is the recording's own frame. An AMTI plate in its own frame
+    (z down) placed with +y forward has x = ``left``.
     """
 
     x: Direction = "right"

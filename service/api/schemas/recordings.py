@@ -87,7 +87,7 @@ class PlateIn(BaseModel):
     axes: PlateAxes = Field(
         default=PlateAxes(),
         description="Where the file's +x and +y axes point (`right`, `left`, `forward`, `backward`); +z completes "
-        "a right-handed frame. C3D: the lab's axes; CSV: the plate's (AMTI/Bertec with +y forward: x `left`).",
+        "a right-handed frame. C3D: the lab's axes; CSV: the plate's (AMTI's, +y forward: x `left`).",
     )
     min_fz: float = Field(
         default=MIN_FZ,
