@@ -237,20 +237,25 @@ class Client:
     def upload_recording(
         self,
         demonstrator_id: str,
-        csv: Path | bytes,
+        file: Path | bytes,
         *,
         mdp_id: str,
         bounds: Mapping[str, float],
         name: str | None = None,
+        plate: Mapping[str, Any] | None = None,
     ) -> dict[str, Any]:
-        """`POST /v1/demonstrators/{id}/recordings` with a CSV of centre-of-pressure samples (columns
-        ``t,x,y`` and optionally ``instruction``) on a plate of ``bounds`` (``x_min``, ``x_max``, ``y_min``,
-        ``y_max``), mapped onto the velocity grid ``mdp_id``. Returns the recording (its ``tasks``, each
-        with ``task_id`` and ``label``, ``n_samples``, ``segments``)."""
-        content = csv.read_bytes() if isinstance(csv, Path) else csv
-        filename = csv.name if isinstance(csv, Path) else "recording.csv"
-        form = {"mdp_id": mdp_id, "bounds": json.dumps(dict(bounds))} | ({"name": name} if name else {})
-        files = {"file": (filename, content, "text/csv")}
+        """`POST /v1/demonstrators/{id}/recordings` with a recording file on a plate of ``bounds`` (``x_min``,
+        ``x_max``, ``y_min``, ``y_max``), mapped onto the velocity grid ``mdp_id``: a CSV of centre-of-pressure
+        samples (columns ``t,x,y`` and optionally ``instruction``), a C3D file, or a CSV of plate forces and
+        moments (``Fx,Fy,Fz,Mx,My,Mz``); the service tells them apart. ``plate`` says how to read a force-plate
+        file (``axes``, ``min_fz``, ``platform``, ``rate_hz``, ``moment_unit``, ``origin_depth``; docs/motion.md,
+        "Force-plate files"). Returns the recording (its ``tasks``, each with ``task_id`` and ``label``,
+        ``n_samples``, ``segments``)."""
+        content = file.read_bytes() if isinstance(file, Path) else file
+        filename = file.name if isinstance(file, Path) else "recording"
+        form = {"mdp_id": mdp_id, "bounds": json.dumps(dict(bounds))}
+        form |= ({"name": name} if name else {}) | ({"plate": json.dumps(dict(plate))} if plate else {})
+        files = {"file": (filename, content, "application/octet-stream")}
         path = f"/v1/demonstrators/{demonstrator_id}/recordings"
         return dict(self._json("POST", path, files=files, data=form))
 

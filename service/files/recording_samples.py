@@ -1,52 +1,60 @@
-"""Recording samples as uploaded: JSON rows or a CSV with columns ``t,x,y[,instruction]``, and a CSV upload's
-other fields; every problem a 422 naming the sample (and its CSV line)."""
+"""Recording samples as uploaded: JSON rows or a CSV with columns ``t,x,y[,instruction]``, and a file upload's
+other fields; every problem a 422 naming the sample (and its CSV line). Force-plate files: `force_plates`."""
 
 from __future__ import annotations
 
 import json
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any
 
 from pydantic import ValidationError
 from starlette.datastructures import FormData
 
 from metairl_engine import InvalidInput
-from service.api.schemas.recordings import RecordingIn, RecordingOptions
+from service.api.schemas.common import UploadFormat
+from service.api.schemas.recordings import FileOptions, RecordingIn
 from service.files.csv_rows import MAX_ERRORS, csv_error, csv_rows
 from service.problems import Unprocessable, validation_errors
 
-Format = Literal["json", "csv"]
 REQUIRED_COLUMNS = ("t", "x", "y")
 INSTRUCTION_COLUMN = "instruction"
-OBJECT_FIELDS = ("bounds", "grid", "discretise", "segment")
-"""Form fields of a CSV upload that hold a JSON object (the others are plain strings)."""
+OBJECT_FIELDS = ("bounds", "grid", "discretise", "segment", "plate")
+"""Form fields of a file upload that hold a JSON object (the others are plain strings)."""
 SAMPLE_POINTER = re.compile(r"^/samples/(\d+)(/|$)")
+
+
+def located(error: InvalidInput, lines: Sequence[int] | None) -> Unprocessable:
+    """The engine's issues as a 422, the CSV line of each sample (``lines[k]`` for ``/samples/k``) added."""
+    items = []
+    for issue in error.issues:
+        match = SAMPLE_POINTER.match(issue.pointer)
+        line = lines[int(match.group(1))] if match and lines else None
+        suffix = f" (CSV line {line})" if line else ""
+        items.append({"pointer": issue.pointer, "message": issue.message + suffix})
+    first = items[0]
+    return Unprocessable(
+        f"The recording is invalid. {first['pointer'] or '/'}: {first['message']}", errors=items
+    )
 
 
 @dataclass(frozen=True)
 class Samples:
-    """Uploaded sample columns; ``lines`` gives the CSV line of every sample (None for JSON)."""
+    """Uploaded sample columns; ``lines`` gives the CSV line of every sample (None for JSON and C3D), ``plate``
+    how a force-plate file was read (None for COP samples)."""
 
     t: list[float]
     x: list[float]
     y: list[float]
     instruction: list[str | None] | None
-    format: Format
+    format: UploadFormat
     lines: list[int] | None = None
+    plate: dict[str, Any] | None = None
 
     def located(self, error: InvalidInput) -> Unprocessable:
         """The engine's issues as a 422, each sample's CSV line added to its message."""
-        items = []
-        for issue in error.issues:
-            match = SAMPLE_POINTER.match(issue.pointer)
-            line = self.lines[int(match.group(1))] if match and self.lines else None
-            suffix = f" (CSV line {line})" if line else ""
-            items.append({"pointer": issue.pointer, "message": issue.message + suffix})
-        first = items[0]
-        return Unprocessable(
-            f"The recording is invalid. {first['pointer'] or '/'}: {first['message']}", errors=items
-        )
+        return located(error, self.lines)
 
 
 def json_samples(body: RecordingIn) -> Samples:
@@ -62,20 +70,30 @@ def json_samples(body: RecordingIn) -> Samples:
     )
 
 
-def csv_samples(data: bytes) -> Samples:
-    """Parse a CSV with header ``t,x,y`` and optionally ``instruction``; 422 naming sample and line."""
-    present, rows = csv_rows(data, required=REQUIRED_COLUMNS, optional=(INSTRUCTION_COLUMN,))
-    values: dict[str, list[float]] = {c: [] for c in REQUIRED_COLUMNS}
+@dataclass(frozen=True)
+class CsvColumns:
+    """The columns of a CSV upload: numbers by column, the instruction column (if any), each row's line."""
+
+    values: dict[str, list[float]]
+    instruction: list[str | None] | None
+    lines: list[int]
+
+
+def read_columns(data: bytes, *, required: Sequence[str], optional: Sequence[str] = ()) -> CsvColumns:
+    """The numeric columns `required` (and those of `optional` present) and the ``instruction`` column of a
+    CSV; 422 naming the sample (``/samples/k/column``) and line of every cell that is not a number."""
+    present, rows = csv_rows(data, required=required, optional=(*optional, INSTRUCTION_COLUMN))
+    values: dict[str, list[float]] = {c: [] for c in (*required, *optional) if c in present}
     instruction: list[str | None] = []
     lines: list[int] = []
     errors: list[tuple[str, str]] = []
     for line, cells in rows:
         k = len(lines)
-        for c in REQUIRED_COLUMNS:
+        for c, column in values.items():
             try:
-                values[c].append(float(cells[c]))
+                column.append(float(cells[c]))
             except ValueError:
-                values[c].append(float("nan"))
+                column.append(float("nan"))
                 errors.append((f"/samples/{k}/{c}", f"{c} {cells[c]!r} is not a number (CSV line {line})"))
         instruction.append(cells.get(INSTRUCTION_COLUMN) or None)
         lines.append(line)
@@ -83,19 +101,25 @@ def csv_samples(data: bytes) -> Samples:
             break
     if errors:
         raise csv_error(errors)
+    return CsvColumns(values, instruction if INSTRUCTION_COLUMN in present else None, lines)
+
+
+def csv_samples(data: bytes) -> Samples:
+    """Parse a CSV with header ``t,x,y`` and optionally ``instruction``; 422 naming sample and line."""
+    columns = read_columns(data, required=REQUIRED_COLUMNS)
     return Samples(
-        t=values["t"],
-        x=values["x"],
-        y=values["y"],
-        instruction=instruction if INSTRUCTION_COLUMN in present else None,
+        t=columns.values["t"],
+        x=columns.values["x"],
+        y=columns.values["y"],
+        instruction=columns.instruction,
         format="csv",
-        lines=lines,
+        lines=columns.lines,
     )
 
 
-def form_options(form: FormData) -> RecordingOptions:
-    """The options of a CSV upload from its form fields (``bounds``, ``grid``, ``discretise``, ``segment``
-    as JSON objects; ``mdp_id`` and ``name`` as text); 422 with pointers as for a JSON body."""
+def form_options(form: FormData) -> FileOptions:
+    """The options of a file upload from its form fields (``bounds``, ``grid``, ``discretise``, ``segment``,
+    ``plate`` as JSON objects; ``mdp_id`` and ``name`` as text); 422 with pointers as for a JSON body."""
     raw: dict[str, Any] = {}
     for key, value in form.items():
         if not isinstance(value, str):
@@ -111,6 +135,6 @@ def form_options(form: FormData) -> RecordingOptions:
                 errors=[{"pointer": f"/{key}", "message": f"is not valid JSON ({exc})"}],
             ) from exc
     try:
-        return RecordingOptions.model_validate(raw)
+        return FileOptions.model_validate(raw)
     except ValidationError as exc:
         raise validation_errors(exc.errors(include_url=False), raw) from exc

@@ -1,6 +1,7 @@
 """Centre-of-pressure recordings → tasks and demonstrations of a demonstrator (docs/motion.md; docs/api.md, "Centre-of-pressure recordings").
 
-A recording (JSON rows or a CSV file with columns ``t,x,y[,instruction]``) is validated and cut by the engine
+A recording (JSON rows, a CSV file with columns ``t,x,y[,instruction]``, or a force-plate file read into
+such samples by `service.files.force_plates`) is validated and cut by the engine
 (`metairl_engine.motion`: samples → cells and directions, skipped cells filled, pauses dropped, segments at
 peaks of the distance from the origin, labelled by instruction or direction). Each label becomes, or joins,
 the demonstrator's task of that name on the same MDP, and its segments are stored as one demonstration batch.
@@ -218,7 +219,8 @@ def add_recording(
             "bounds": asdict(rec.bounds),
             "discretise": asdict(discretise),
             "segment": asdict(options.segment),
-        },
+        }
+        | ({} if samples.plate is None else {"plate": samples.plate}),
         summary={
             "mdp_created": target.row is None,
             "segments": {t.label: t.n_trajectories for t in tasks},

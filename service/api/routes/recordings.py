@@ -1,5 +1,6 @@
-"""`/v1/demonstrators/{demonstrator_id}/recordings`: upload a centre-of-pressure recording (JSON or CSV) that
-becomes per-direction tasks and demonstrations; list a demonstrator's recordings (docs/motion.md)."""
+"""`/v1/demonstrators/{demonstrator_id}/recordings`: upload a centre-of-pressure recording (JSON, a CSV, a C3D or
+a CSV of plate forces and moments) that becomes per-direction tasks and demonstrations; list a demonstrator's
+recordings (docs/motion.md)."""
 
 from __future__ import annotations
 
@@ -18,8 +19,15 @@ from service.api.openapi import PROBLEM_RESPONSES, request_body
 from service.api.pagination import Page, PageDep
 from service.api.responses import file_response
 from service.api.schemas.motion import CutTrajectory, RecordingDemonstrationsOut
-from service.api.schemas.recordings import EXAMPLE_GRID_IN, EXAMPLE_IN, RecordingIn, RecordingOut
-from service.files.recording_samples import csv_samples, form_options, json_samples
+from service.api.schemas.recordings import (
+    EXAMPLE_GRID_IN,
+    EXAMPLE_IN,
+    RecordingIn,
+    RecordingOptions,
+    RecordingOut,
+)
+from service.files.force_plates import file_samples
+from service.files.recording_samples import form_options, json_samples
 from service.jobs.rewards import Download
 from service.store import recordings
 from service.store.demonstrators import get_demonstrator
@@ -30,20 +38,27 @@ OTHER_MDP: dict[int | str, dict[str, object]] = {
 }
 RECORDING_IN = TypeAdapter(RecordingIn)
 JSON_OBJECT = "A JSON object, as in the JSON body."
-CSV_FORM = {
+FILE_FORM = {
     "type": "object",
     "required": ["file", "bounds"],
     "properties": {
         "file": {
             "type": "string",
             "format": "binary",
-            "description": "CSV with header t,x,y and optionally instruction; one row per sample, in time order.",
+            "description": "One of: a CSV with header t,x,y and optionally instruction; a C3D file (recognised "
+            "by its bytes or a .c3d name) with a force platform; a CSV with header Fx,Fy,Fz,Mx,My,Mz, optionally "
+            "t (s) and instruction. One row or frame per sample, in time order.",
         },
         "bounds": {"type": "string", "description": f"{JSON_OBJECT} x_min, x_max, y_min, y_max."},
         "mdp_id": {"type": "string", "description": "A velocity-grid MDP of your lab (or give grid)."},
         "grid": {"type": "string", "description": f"{JSON_OBJECT} width, height, gamma."},
         "discretise": {"type": "string", "description": f"{JSON_OBJECT} smooth_s."},
         "segment": {"type": "string", "description": f"{JSON_OBJECT} the segment settings."},
+        "plate": {
+            "type": "string",
+            "description": f"{JSON_OBJECT} force-plate files only: axes, min_fz, platform (C3D), rate_hz, "
+            "moment_unit, origin_depth (CSV of forces and moments).",
+        },
         "name": {"type": "string"},
     },
 }
@@ -57,8 +72,13 @@ CSV_FORM = {
     "velocity-grid MDP (`mdp_id`, or `grid` to reuse or create one), cut into out-and-back movements at peaks "
     "of the distance from the origin and labelled by instruction (or nearest direction). Each label becomes "
     "or joins the demonstrator's task of that name and receives its segments as one demonstration batch. "
-    "Send JSON, or the CSV as multipart/form-data with the other fields as form fields. All or nothing: an "
-    "invalid recording (errors name the sample, e.g. `/samples/17/t`, and the CSV line) stores nothing.",
+    "Send JSON, or a file as multipart/form-data with the other fields as form fields: a CSV of samples, a C3D "
+    "file (its force platform's centre of pressure, read with ezc3d; instructions from its events) or a CSV of "
+    "plate forces and moments Fx…Mz (COP = (−My/Fz, Mx/Fz)). A force-plate file's COP is stored in metres about "
+    "the plate's centre, in the axes its `plate.axes` declare; unloaded samples (|Fz| < `plate.min_fz`) at the "
+    'start and end are cut away (docs/motion.md, "Force-plate files"). All or nothing: an invalid recording '
+    "(errors name the sample, e.g. `/samples/17/t`, and the CSV line; `/file` a file without a usable force "
+    "platform) stores nothing.",
     responses=OTHER_MDP,
     openapi_extra=request_body(
         RecordingIn,
@@ -66,7 +86,7 @@ CSV_FORM = {
             "existing MDP": {"summary": "Onto a velocity grid of your lab", "value": EXAMPLE_IN},
             "grid": {"summary": "Reuse or create a 100×100 velocity grid", "value": EXAMPLE_GRID_IN},
         },
-        multipart=CSV_FORM,
+        multipart=FILE_FORM,
     ),
 )
 async def upload_recording(
@@ -75,15 +95,16 @@ async def upload_recording(
     """Parse the body, then validate, cut and store it in one transaction."""
     demonstrator = await run_in_threadpool(get_demonstrator, session, demonstrator_id, lab_id=lab.id)
     kind = media_type(request)
+    options: RecordingOptions
     if kind == "multipart/form-data":
         form, upload = await form_body(request)
         options = form_options(form)
-        samples = csv_samples(await upload.read())
+        samples = await run_in_threadpool(file_samples, upload.filename, await upload.read(), options.plate)
     elif kind == "application/json":
         body = await json_body(request, RECORDING_IN)
         options, samples = body, json_samples(body)
     else:
-        raise unsupported(request, accepted="application/json or multipart/form-data (CSV)")
+        raise unsupported(request, accepted="application/json or multipart/form-data (a CSV or C3D file)")
     created = await run_in_threadpool(recordings.add_recording, session, demonstrator, options, samples)
     await run_in_threadpool(session.commit)
     response.headers["Location"] = f"/v1/demonstrators/{demonstrator.id}/recordings"

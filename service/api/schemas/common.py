@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, Strict
 
@@ -20,6 +20,8 @@ Name = Annotated[
     Field(min_length=1, max_length=200, description="A human-readable name."),
     AfterValidator(_not_blank),
 ]
+UploadFormat = Literal["json", "csv", "c3d", "forces"]
+"""How demonstrations or a recording came: JSON, CSV, or (recordings) a C3D file or a CSV of plate forces."""
 Integer = Annotated[int, Strict()]
 """A JSON integer: `true`, `1.0` or `"1"` are not taken for 1 (strict, unlike pydantic's default)."""
 Metadata = Annotated[

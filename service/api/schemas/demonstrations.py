@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
-from service.api.schemas.common import Integer, Resource
+from service.api.schemas.common import Integer, Resource, UploadFormat
 from service.store.models.demonstrators import Demonstration
 
 Index = Annotated[Integer, Field(ge=-(2**31), le=2**31 - 1)]
@@ -52,7 +52,9 @@ class DemonstrationOut(Resource):
     )
 
     task_id: str
-    format: Literal["json", "csv"]
+    format: UploadFormat = Field(
+        description="How the batch came (a recording's batches: the recording's format)."
+    )
     n_trajectories: int
     n_steps: int = Field(description="Demonstrated (state, action) pairs in this batch.")
 

@@ -8,11 +8,12 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 from pydantic.json_schema import JsonDict, JsonValue
 
+from metairl_engine.force_plate import MIN_FZ, PlateAxes
 from metairl_engine.motion import Bounds, DiscretiseSettings, SegmentSettings
-from service.api.schemas.common import Resource
+from service.api.schemas.common import Resource, UploadFormat
 from service.store.models.recordings import Recording as RecordingRow
 
 PLATE_EXAMPLE: JsonDict = {"x_min": -0.2, "x_max": 0.2, "y_min": -0.2, "y_max": 0.2}
@@ -75,6 +76,53 @@ class RecordingOptions(BaseModel):
     discretise: DiscretiseIn = DiscretiseIn()
     segment: SegmentSettings = Field(
         default=SegmentSettings(), description="How the session splits into out-and-back movements."
+    )
+
+
+class PlateIn(BaseModel):
+    """How to read a force-plate file (a C3D, or a CSV of forces and moments) into COP samples in metres."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    axes: PlateAxes = Field(
+        default=PlateAxes(),
+        description="Where the file's +x and +y axes point (`right`, `left`, `forward`, `backward`); +z completes "
+        "a right-handed frame. C3D: the lab's axes; CSV: the plate's (AMTI's, +y forward: x `left`).",
+    )
+    min_fz: float = Field(
+        default=MIN_FZ,
+        gt=0,
+        description="Least |Fz| (N) of a loaded sample; unloaded samples at the start and end are cut away, "
+        "between loaded ones they are a 422.",
+    )
+    platform: int = Field(default=1, ge=1, description="C3D only: which force platform, from 1.")
+    rate_hz: float | None = Field(
+        default=None, gt=0, description="CSV only, without a `t` column: samples per second."
+    )
+    moment_unit: Literal["Nm", "Ncm", "Nmm"] = Field(
+        default="Nm", description="CSV only: unit of Mx, My, Mz (forces in N); its length is the COP's."
+    )
+    origin_depth: float = Field(
+        default=0.0,
+        ge=0,
+        description="CSV only: how far the measurement origin lies below the plate surface, in the moments' "
+        "length unit (AMTI's h, the z offset of the plate's manual).",
+    )
+
+    @field_validator("axes")
+    @classmethod
+    def _perpendicular(cls, axes: PlateAxes) -> PlateAxes:
+        """x and y must point to perpendicular directions (one sideways, one forward or backward)."""
+        for issue in axes.issues():
+            raise ValueError(f"y {issue.message}")
+        return axes
+
+
+class FileOptions(RecordingOptions):
+    """The form fields of a file upload: the recording's options and, for a force-plate file, how to read it."""
+
+    plate: PlateIn | None = Field(
+        default=None, description="For a C3D or a CSV of forces and moments: units, axes, threshold."
     )
 
 
@@ -142,7 +190,10 @@ class RecordingOut(Resource):
     mdp_id: str
     mdp_created: bool = Field(description="True if the upload created the velocity grid (`grid` given).")
     name: str | None
-    format: Literal["json", "csv"]
+    format: UploadFormat = Field(
+        description="How the samples came: `json`, `csv` (COP samples), `c3d` or `forces` (a CSV of forces "
+        "and moments)."
+    )
     n_samples: int
     duration: float = Field(description="Last minus first sample time.")
     segments: dict[str, int] = Field(description="Segments kept per label.")
@@ -152,7 +203,8 @@ class RecordingOut(Resource):
     )
     tasks: list[RecordingTask]
     settings: dict[str, Any] = Field(
-        description="Bounds and the discretise/segment settings used, defaults filled."
+        description="Bounds and the discretise/segment settings used, defaults filled; for a force-plate file "
+        "also `plate`: how it was read (the `plate` options, the file's own units, unloaded samples cut away)."
     )
 
     @classmethod

@@ -33,13 +33,14 @@ class Recording(CreatedAtMixin, Base):
     mdp_id: Mapped[str] = mapped_column(String(ID_LENGTH), ForeignKey("mdps.id"))
     name: Mapped[str | None] = mapped_column(String(200))
     format: Mapped[str] = mapped_column(String(8))
-    """``json`` or ``csv``: how the samples were uploaded."""
+    """``json``, ``csv``, ``c3d`` or ``forces`` (a CSV of plate forces and moments): how the samples came."""
     n_samples: Mapped[int] = mapped_column(Integer)
     duration: Mapped[float] = mapped_column(Float)
     """Last minus first sample time, in the recording's time unit."""
     samples_blob_id: Mapped[str] = mapped_column(String(ID_LENGTH), ForeignKey("blobs.id"))
     instructions_blob_id: Mapped[str | None] = mapped_column(String(ID_LENGTH), ForeignKey("blobs.id"))
     settings: Mapped[dict[str, Any]] = mapped_column(JSON)
-    """Plate bounds and the discretise/segment settings used (every default filled in)."""
+    """Plate bounds and the discretise/segment settings used (every default filled in); ``plate`` for a
+    force-plate file: how it was read."""
     summary: Mapped[dict[str, Any]] = mapped_column(JSON)
     """Segments per label, tasks created or joined, dropped samples and segments."""
