@@ -42,6 +42,7 @@ def open_dashboard(browser: Browser, url: str, key: str) -> tuple[Page, list[str
     page.set_default_timeout(60_000)
     page.goto(f"{url}/ui")
     assert page.title() == "metairl dashboard"
+    assert page.locator("#main").is_hidden() and page.locator("#welcome").is_visible()  # no key yet
     page.fill("#key-input", key)
     page.click("#key-use")
     return page, errors
