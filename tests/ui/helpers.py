@@ -3,6 +3,7 @@ API, and opening the page with a key."""
 
 from __future__ import annotations
 
+import time
 from typing import TYPE_CHECKING, Any
 
 import httpx
@@ -32,6 +33,15 @@ def submit(http: httpx.Client, demonstrator_id: str, config: dict[str, Any]) -> 
     return str(
         ok(http.post("/v1/jobs", json={"demonstrator_id": demonstrator_id, "config": config}), 202)["id"]
     )
+
+
+def wait_until_succeeded(http: httpx.Client, job_id: str, timeout: float = 180.0) -> None:
+    """Poll until the job succeeded (the worker's first start imports torch: allow for a loaded machine)."""
+    deadline = time.monotonic() + timeout
+    while (job := ok(http.get(f"/v1/jobs/{job_id}"), 200))["status"] != "succeeded":
+        assert job["status"] not in TERMINAL, job
+        assert time.monotonic() < deadline, f"not finished after {timeout} s: {job}"
+        time.sleep(0.3)
 
 
 def open_dashboard(browser: Browser, url: str, key: str) -> tuple[Page, list[str]]:
