@@ -1,18 +1,25 @@
-"""The dashboard's motion readout in a real browser (the system chromium, driven by Playwright) against a
-real `metairl serve` (API and worker): two sessions' recordings read out per direction beside the learned
-rewards and compared.
+"""The dashboard's motion readout and webhooks panel in a real browser (the system chromium, driven by
+Playwright) against a real `metairl serve` (API and worker; private webhook targets allowed, so the worker
+delivers to a receiver in this process): two sessions' recordings read out per direction beside the learned
+rewards and compared; a webhook added from the form, its secret shown once, its delivery shown, deleted.
 
 Screenshots go to `test-artifacts/ui/` in the repository root (look at them after a change to the page).
 """
 
 from __future__ import annotations
 
+import contextlib
+import json
+import threading
+import time
 from collections.abc import Iterator
-from typing import TYPE_CHECKING
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from typing import TYPE_CHECKING, Any
 
 import httpx
 import pytest
 
+from service.jobs.webhooks import sign
 from tests.served import Served, metairl_serve
 from tests.service.helpers import PLATE, cop_rows
 from tests.ui.helpers import ARTIFACTS, QUICK, ok, open_dashboard, submit, wait_until_succeeded
@@ -25,13 +32,40 @@ pytestmark = [pytest.mark.worker, pytest.mark.slow, pytest.mark.browser]
 UNSTIMULATED = {"forward": 0.10, "right": 0.10, "left": 0.05}
 STIMULATED = {"forward": 0.13, "right": 0.13, "left": 0.08}
 """Peak reach per direction (metres) of one patient's two sessions: stimulation adds 3 cm everywhere."""
+Received = list[tuple[dict[str, str], bytes]]
 
 
 @pytest.fixture(scope="module")
 def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Served]:
-    """`metairl serve`: the API and one worker."""
-    with metairl_serve(tmp_path_factory.mktemp("serve")) as served:
+    """`metairl serve`: the API and one worker, accepting webhook targets on this machine."""
+    settings = {"METAIRL_WEBHOOK_ALLOW_PRIVATE": "true"}
+    with metairl_serve(tmp_path_factory.mktemp("serve"), settings=settings) as served:
         yield served
+
+
+@contextlib.contextmanager
+def receiver() -> Iterator[tuple[str, Received]]:
+    """An HTTP server on this machine that answers 204 to every POST: its URL, and the requests it got."""
+    got: Received = []
+
+    class Hook(BaseHTTPRequestHandler):
+        def do_POST(self) -> None:
+            body = self.rfile.read(int(self.headers["content-length"]))
+            got.append(({k.lower(): v for k, v in self.headers.items()}, body))
+            self.send_response(204)
+            self.end_headers()
+
+        def log_message(self, format: str, *args: Any) -> None:
+            """Quiet."""
+
+    server = ThreadingHTTPServer(("127.0.0.1", 0), Hook)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{server.server_port}/hook", got
+    finally:
+        server.shutdown()
+        server.server_close()
 
 
 def recorded(http: httpx.Client, name: str, reach: dict[str, float], seed: int = 0) -> str:
@@ -129,4 +163,82 @@ def test_dashboard_reads_out_a_sessions_motion_beside_its_learned_rewards_and_co
     assert loss.get_attribute("class") == "num neg clear"
     page.wait_for_selector("#learned :text('No job on this demonstrator has succeeded yet')")
     assert page.locator(f".dem[data-demonstrator='{before}']").get_attribute("class") == "dem"
+    assert errors == []
+
+
+def test_dashboard_adds_a_webhook_shows_its_secret_once_and_its_delivery_and_deletes_it(
+    served: Served, browser: Browser
+) -> None:
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    http = httpx.Client(base_url=served.url, headers={"Authorization": f"Bearer {served.key}"}, timeout=60)
+    with receiver() as (hook_url, got):
+        page, errors = open_dashboard(browser, served.url, served.key)
+        page.context.grant_permissions(["clipboard-read", "clipboard-write"], origin=served.url)
+        panel = page.locator("section.webhooks")
+        # A URL the API refuses: its reason shows under the form, nothing is added.
+        page.fill("#webhook-url", "ftp://lab.example.org/hook")
+        page.click("#webhook-add")
+        page.wait_for_selector("#webhook-error:has-text('http:// or https://')")
+        assert "422" in page.locator("#webhook-error").inner_text()
+        assert ok(http.get("/v1/webhooks"), 200)["data"] == []
+
+        page.fill("#webhook-url", hook_url)
+        page.uncheck("input[name='events'][value='job.cancelled']")
+        page.click("#webhook-add")
+        row = page.locator("#webhooks tr[data-webhook]")
+        page.wait_for_selector(f"#webhooks tr[data-webhook]:has-text('{hook_url}')")
+        assert page.locator("#webhook-error").is_hidden() and page.locator("#webhook-url").input_value() == ""
+        secret = page.locator("[data-role='secret']").inner_text()
+        assert secret.startswith("whsec_")
+        hook_id = row.get_attribute("data-webhook")
+        listed = ok(http.get("/v1/webhooks"), 200)["data"]
+        assert [(h["id"], h["url"], h["events"]) for h in listed] == [
+            (hook_id, hook_url, ["job.failed", "job.succeeded"])
+        ]
+        assert secret not in json.dumps(listed)
+        assert "succeeded, failed" in row.inner_text() and "no deliveries yet" in row.inner_text()
+        page.click("[data-action='copy-secret']")
+        page.wait_for_selector("[data-action='copy-secret']:has-text('Copied')")
+        assert page.evaluate("navigator.clipboard.readText()") == secret
+        panel.scroll_into_view_if_needed()
+        page.screenshot(path=ARTIFACTS / "7-webhook-secret.png")
+
+        # A job ends: the receiver gets it signed with that secret, and the page shows the delivery.
+        job_id = submit(http, recorded(http, "P2 unstimulated", {"forward": 0.1}), QUICK)
+        wait_until_succeeded(http, job_id)
+        deadline = time.monotonic() + 60
+        while (deliveries := ok(http.get(f"/v1/webhooks/{hook_id}"), 200)["deliveries"]) == [] or deliveries[
+            0
+        ]["status"] != "delivered":
+            assert time.monotonic() < deadline, deliveries
+            time.sleep(0.3)
+        headers, body = got[0]
+        assert json.loads(body)["type"] == "job.succeeded" and json.loads(body)["data"]["id"] == job_id
+        stamp = int(headers["webhook-timestamp"])
+        assert headers["webhook-signature"] == sign(
+            secret, msg_id=headers["webhook-id"], timestamp=stamp, body=body
+        )
+        page.click("#refresh")
+        page.wait_for_selector(f"tr[data-webhook='{hook_id}'] [data-role='delivery']:has-text('delivered')")
+        assert "job.succeeded" in row.inner_text()
+
+        # The secret goes with "Done" and never comes back: not after a reload either.
+        page.click("[data-action='dismiss-secret']")
+        assert page.locator("#webhook-secret").is_hidden()
+        page.reload()
+        page.wait_for_selector(f"tr[data-webhook='{hook_id}'] [data-role='delivery']:has-text('delivered')")
+        assert secret not in page.content()
+        panel.scroll_into_view_if_needed()
+        page.screenshot(path=ARTIFACTS / "8-webhook-delivered.png")
+
+        # Delete asks first: declined, it stays; accepted, it is gone from the page and the API.
+        page.once("dialog", lambda dialog: dialog.dismiss())
+        page.click(f"tr[data-webhook='{hook_id}'] [data-action='delete']")
+        page.wait_for_timeout(500)
+        assert row.count() == 1
+        page.once("dialog", lambda dialog: dialog.accept())
+        page.click(f"tr[data-webhook='{hook_id}'] [data-action='delete']")
+        page.wait_for_selector(f"tr[data-webhook='{hook_id}']", state="detached")
+        assert page.locator("#webhooks-empty").is_visible()
+        assert ok(http.get("/v1/webhooks"), 200)["data"] == []
     assert errors == []

@@ -31,6 +31,7 @@ const state = {
   resultsCall: 0, // bumped by each showResults, so an earlier call's late answers never redraw the results
   motionCall: 0, // the same for showMotion
   comparisonCall: 0, // the same for showComparison
+  webhooksCall: 0, // the same for loadWebhooks: an earlier listing never redraws over a later one
   mode: "", // how progress arrives: "stream" or "polling"
   openStreams: 0,
 };
@@ -155,6 +156,7 @@ function stopAll() {
   state.resultsCall += 1;
   state.motionCall += 1;
   state.comparisonCall += 1;
+  state.webhooksCall += 1;
   for (const controller of state.watching.values()) controller.abort();
   state.watching.clear();
   clearInterval(state.listTimer);
@@ -167,6 +169,9 @@ function stopAll() {
   $("jobs").replaceChildren();
   $("results").hidden = true;
   $("motion").hidden = true;
+  $("webhooks").replaceChildren();
+  hideSecret();
+  $("webhook-error").hidden = true;
   releaseBlobs();
 }
 
@@ -174,7 +179,7 @@ async function loadEverything() {
   const generation = state.generation;
   try {
     await loadDemonstrators(generation);
-    await loadJobs(generation);
+    await Promise.all([loadJobs(generation), loadWebhooks(generation)]);
   } catch (error) {
     if (generation === state.generation) reportError(error);
     return;
@@ -182,6 +187,7 @@ async function loadEverything() {
   clearInterval(state.listTimer);
   state.listTimer = setInterval(() => {
     loadJobs(state.generation).catch(reportError);
+    loadWebhooks(state.generation).catch(reportError);
   }, JOB_LIST_MS);
 }
 
@@ -823,6 +829,160 @@ function renderDifferences(c) {
   );
 }
 
+// ---- webhooks ------------------------------------------------------------------------------------
+
+const DELIVERY_EVENTS = ["job.succeeded", "job.failed", "job.cancelled"];
+
+async function loadWebhooks(generation) {
+  const call = ++state.webhooksCall;
+  const hooks = await getAll("/v1/webhooks");
+  // The listing leaves the deliveries out: each webhook's own page has its latest ones.
+  const detailed = await Promise.all(
+    hooks.map((h) =>
+      getJson(`/v1/webhooks/${encodeURIComponent(h.id)}`).catch((error) => {
+        if (error instanceof ApiError && error.status === 404) return null; // deleted meanwhile
+        throw error;
+      }),
+    ),
+  );
+  if (generation !== state.generation || call !== state.webhooksCall) return;
+  renderWebhooks(detailed.filter(Boolean));
+}
+
+function when(iso) {
+  return iso ? new Date(iso).toLocaleString() : "–";
+}
+
+// The newest delivery's state, with the counts of the latest ones the API keeps.
+function deliveryState(deliveries) {
+  if (deliveries.length === 0) return el("span", { class: "meta" }, "no deliveries yet");
+  const d = deliveries[0];
+  const detail = {
+    delivered: `${d.type} · ${when(d.delivered_at)}`,
+    pending: `${d.type} · attempt ${d.attempts}, next ${when(d.next_attempt_at)}`,
+    failed: `${d.type} · gave up after ${d.attempts} attempts`,
+  }[d.status];
+  const counts = ["delivered", "pending", "failed"]
+    .map((status) => [status, deliveries.filter((x) => x.status === status).length])
+    .filter(([, n]) => n > 0)
+    .map(([status, n]) => `${n} ${status}`)
+    .join(", ");
+  return el(
+    "div",
+    {},
+    el("span", { class: `badge ${d.status}`, "data-role": "delivery" }, d.status),
+    " ",
+    el("span", { class: "meta" }, detail),
+    d.last_error && d.status !== "delivered" ? el("div", { class: "error" }, d.last_error) : null,
+    deliveries.length > 1 ? el("div", { class: "meta" }, `latest ${deliveries.length}: ${counts}`) : null,
+  );
+}
+
+function renderWebhooks(hooks) {
+  $("webhooks").replaceChildren(
+    ...hooks.map((h) =>
+      el(
+        "tr",
+        { "data-webhook": h.id },
+        el("td", { class: "url" }, el("div", { title: h.url }, h.url), el("div", { class: "id" }, h.id)),
+        el("td", {}, DELIVERY_EVENTS.filter((e) => h.events.includes(e)).map((e) => e.replace("job.", "")).join(", ")),
+        el("td", {}, deliveryState(h.deliveries)),
+        el("td", { class: "bar-text" }, when(h.created_at)),
+        el("td", { class: "actions" }, el("button", { class: "danger small", "data-action": "delete", onclick: () => deleteWebhook(h) }, "Delete")),
+      ),
+    ),
+  );
+  $("webhooks-empty").hidden = hooks.length > 0;
+}
+
+function formError(text) {
+  $("webhook-error").textContent = text;
+  $("webhook-error").hidden = !text;
+}
+
+async function addWebhook(event) {
+  event.preventDefault();
+  const generation = state.generation;
+  const events = [...$("webhook-form").querySelectorAll("input[name=events]:checked")].map((i) => i.value);
+  if (events.length === 0) {
+    formError("Tick at least one event.");
+    return;
+  }
+  formError("");
+  $("webhook-add").disabled = true;
+  try {
+    const created = await getJson("/v1/webhooks", {
+      method: "POST",
+      headers: { "Content-Type": "application/json" },
+      body: JSON.stringify({ url: $("webhook-url").value.trim(), events }),
+    });
+    if (generation !== state.generation) return;
+    $("webhook-url").value = "";
+    showSecret(created);
+    await loadWebhooks(generation);
+  } catch (error) {
+    if (generation !== state.generation) return;
+    if (error instanceof ApiError && error.status !== 401) formError(`${error.status}: ${error.message}`);
+    else reportError(error);
+  } finally {
+    $("webhook-add").disabled = false;
+  }
+}
+
+// The API shows a webhook's signing secret in the creation answer only; so does the page, until "Done".
+function showSecret(created) {
+  const value = el("code", { class: "secret-value", "data-role": "secret" }, created.secret);
+  const copy = el("button", { class: "small", type: "button", "data-action": "copy-secret", onclick: () => copySecret(value, copy) }, "Copy");
+  const box = $("webhook-secret");
+  box.dataset.webhook = created.id;
+  box.replaceChildren(
+    el(
+      "div",
+      {},
+      el("strong", {}, "Signing secret of the new webhook, shown this once: copy it now. "),
+      "The receiver verifies each delivery's ",
+      el("code", {}, "webhook-signature"),
+      " header with it (Standard Webhooks); it cannot be read again, only replaced by a new webhook.",
+    ),
+    el("div", { class: "secret-row" }, value, copy, el("button", { class: "small quiet", type: "button", "data-action": "dismiss-secret", onclick: hideSecret }, "Done")),
+  );
+  box.hidden = false;
+}
+
+function hideSecret() {
+  const box = $("webhook-secret");
+  box.replaceChildren();
+  delete box.dataset.webhook;
+  box.hidden = true;
+}
+
+async function copySecret(node, button) {
+  try {
+    await navigator.clipboard.writeText(node.textContent);
+    button.textContent = "Copied";
+  } catch (_) {
+    // No clipboard access (a page served over plain http from another host): select it for Ctrl+C.
+    const range = document.createRange();
+    range.selectNodeContents(node);
+    getSelection().removeAllRanges();
+    getSelection().addRange(range);
+    button.textContent = "Selected: press Ctrl+C";
+  }
+}
+
+async function deleteWebhook(hook) {
+  if (!confirm(`Delete the webhook to ${hook.url}? Deliveries not yet sent are dropped.`)) return;
+  const generation = state.generation;
+  try {
+    await api(`/v1/webhooks/${encodeURIComponent(hook.id)}`, { method: "DELETE" });
+    if (generation !== state.generation) return;
+    if ($("webhook-secret").dataset.webhook === hook.id) hideSecret();
+    await loadWebhooks(generation);
+  } catch (error) {
+    if (generation === state.generation) reportError(error);
+  }
+}
+
 // ---- start ---------------------------------------------------------------------------------------
 
 document.addEventListener("DOMContentLoaded", () => {
@@ -840,5 +1000,6 @@ document.addEventListener("DOMContentLoaded", () => {
     });
   });
   $("compare-with").addEventListener("change", showComparison);
+  $("webhook-form").addEventListener("submit", addWebhook);
   if (state.key) useKey(state.key);
 });
