@@ -38,11 +38,15 @@ class Served:
 
 
 @contextlib.contextmanager
-def metairl_serve(folder: Path, *, timeout_s: float = 90.0) -> Iterator[Served]:
-    """Start `metairl serve` on a free port with its data in ``folder/var``; SIGTERM (then kill) on exit."""
+def metairl_serve(
+    folder: Path, *, timeout_s: float = 90.0, settings: dict[str, str] | None = None
+) -> Iterator[Served]:
+    """Start `metairl serve` on a free port with its data in ``folder/var`` and the given ``METAIRL_*``
+    settings (none of this process's); SIGTERM (then kill) on exit."""
     port = free_port()
     env = {k: v for k, v in os.environ.items() if not k.startswith("METAIRL_")}
     env["METAIRL_DATA_DIR"] = str(folder / "var")
+    env |= settings or {}
     log = folder / "serve.log"
     with log.open("wb") as sink:
         proc = subprocess.Popen(

@@ -46,13 +46,15 @@ def demonstrator_movements(session: Session, demonstrator: Demonstrator) -> tupl
 
 
 def motion_summary(session: Session, demonstrator: Demonstrator) -> dict[str, Any]:
-    """The summary: per direction n_segments and each descriptor's mean with a 95 % interval."""
+    """The summary: per direction n_segments and each descriptor's mean with a 95 % interval; and the
+    learned-reward readout of the demonstrator's latest succeeded job (None where it has none)."""
     moves, n_recordings = demonstrator_movements(session, demonstrator)
     return {
         "demonstrator_id": demonstrator.id,
         "units": UNITS,
         "n_recordings": n_recordings,
         **summarise(moves),
+        "learned": learned_readout(session, demonstrator),
     }
 
 

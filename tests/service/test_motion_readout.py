@@ -65,6 +65,7 @@ def test_summary_has_the_contract_fields_and_shows_the_weak_side(
     response = client.get(f"/v1/demonstrators/{dem['id']}/motion-summary", headers=auth)
     body = created(response, 200)
     assert body["demonstrator_id"] == dem["id"] and body["n_recordings"] == 1
+    assert body["learned"] is None  # no succeeded job yet
     assert set(body["units"]) == {"peak_reach", "path_length", "deviation", "time_to_peak_s", "mean_speed"}
     assert [row["direction"] for row in body["directions"]] == ["right", "forward", "left"]  # canonical order
     rows = by_direction(body)
@@ -131,7 +132,7 @@ def test_comparison_gives_b_minus_a_with_intervals_and_a_png(
     assert png.content.startswith(b"\x89PNG\r\n\x1a\n")
 
 
-def test_comparison_carries_each_sides_latest_learned_readout(
+def test_comparison_and_summary_carry_each_sides_latest_learned_readout(
     app: FastAPI, client: TestClient, auth: dict[str, str]
 ) -> None:
     a = make_demonstrator(client, auth)
@@ -165,6 +166,8 @@ def test_comparison_carries_each_sides_latest_learned_readout(
         assert row["task_id"] == task_id and row["reward_id"] == reward_id
         assert row["n_visited_states"] > 0 and row["task_baseline_pearson"] > 0.9
         assert row["baseline_ring_centred"] is not None
+    summary = created(client.get(f"/v1/demonstrators/{b['id']}/motion-summary", headers=auth), 200)
+    assert summary["learned"] == learned  # the summary carries the same readout of b's latest job
 
 
 def test_another_labs_demonstrators_are_not_found(

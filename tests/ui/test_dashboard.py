@@ -3,6 +3,7 @@
 page, watch a queued job succeed, open its heatmaps, comparison matrix and key states.
 
 Screenshots go to `test-artifacts/ui/` in the repository root (look at them after a change to the page).
+The browser fixture is in `conftest.py`, what the dashboard tests share in `helpers.py`.
 """
 
 from __future__ import annotations
@@ -22,39 +23,18 @@ import pytest
 from fastapi.testclient import TestClient
 
 from tests.served import REPO, Served, free_port, metairl_serve
+from tests.ui.helpers import ARTIFACTS, LAPTOP, QUICK, TERMINAL, ok, open_dashboard, submit
 
 if TYPE_CHECKING:
-    from playwright.sync_api import Browser, Page, Route, ViewportSize
+    from playwright.sync_api import Browser, Route
 
 pytestmark = [pytest.mark.worker, pytest.mark.slow, pytest.mark.browser]
 
-CHROMIUM = Path("/usr/bin/chromium")
-ARTIFACTS = REPO / "test-artifacts" / "ui"
-LAPTOP: ViewportSize = {"width": 1366, "height": 768}
 WIDTH, HEIGHT = 5, 5
 RIGHT, LEFT, UP, DOWN = range(4)
-QUICK = {"max_steps": 300, "hidden": [16], "tolerance": 0, "patience": 0, "seed": 0}
-"""A fit of the grid tasks that takes a second or a few once a worker has it."""
 RING = 150
 ENDLESS = {"max_steps": 100_000, "hidden": [16], "sharing": "l2", "tolerance": 0, "patience": 0}
 """On the ring tasks: runs for many seconds (until cancelled), keeping the one worker busy."""
-TERMINAL = {"succeeded", "failed", "cancelled"}
-
-
-def chromium_or_skip() -> str:
-    """The system chromium; outside CI a machine without it skips, in CI (`CI` set) that is a failure."""
-    if CHROMIUM.exists():
-        return str(CHROMIUM)
-    if os.environ.get("CI"):
-        pytest.fail(f"{CHROMIUM} is missing in CI: .ci/run installs it with apt-get")
-    pytest.skip(f"{CHROMIUM} is not installed (apt-get install chromium); CI runs this test")
-
-
-def ok(response: httpx.Response, status: int = 201) -> dict[str, Any]:
-    """The JSON body of a response that must have ``status``."""
-    assert response.status_code == status, response.text
-    body: dict[str, Any] = response.json()
-    return body
 
 
 def grid_step(state: int, action: int) -> int:
@@ -137,13 +117,6 @@ def make_circler(http: httpx.Client) -> str:
     return str(circler["id"])
 
 
-def submit(http: httpx.Client, demonstrator_id: str, config: dict[str, Any]) -> str:
-    """POST a job; its id."""
-    return str(
-        ok(http.post("/v1/jobs", json={"demonstrator_id": demonstrator_id, "config": config}), 202)["id"]
-    )
-
-
 def wait_until_running(http: httpx.Client, job_id: str, timeout: float = 180.0) -> None:
     """Poll until the job runs (the worker's first start imports torch: allow for a loaded machine)."""
     deadline = time.monotonic() + timeout
@@ -201,33 +174,6 @@ def api_only(tmp_path: Path) -> Iterator[tuple[str, str]]:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
-
-
-@pytest.fixture
-def browser() -> Iterator[Browser]:
-    """The system chromium, headless."""
-    executable = chromium_or_skip()
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as playwright:
-        launched = playwright.chromium.launch(executable_path=executable, args=["--no-sandbox"])
-        try:
-            yield launched
-        finally:
-            launched.close()
-
-
-def open_dashboard(browser: Browser, url: str, key: str) -> tuple[Page, list[str]]:
-    """A laptop-sized page on /ui with the key pasted; and the list its script errors are added to."""
-    page = browser.new_page(viewport=LAPTOP)
-    errors: list[str] = []
-    page.on("pageerror", lambda error: errors.append(str(error)))
-    page.set_default_timeout(60_000)
-    page.goto(f"{url}/ui")
-    assert page.title() == "metairl dashboard"
-    page.fill("#key-input", key)
-    page.click("#key-use")
-    return page, errors
 
 
 def test_dashboard_follows_a_real_job_from_queued_to_succeeded_and_shows_its_rewards(

@@ -34,14 +34,15 @@ NO_RECORDINGS = "The demonstrator (a side) has no recordings; `detail` says whic
     "segment settings of its upload) and, per instructed direction, peak reach, path length, deviation from "
     "the instructed line, time to peak and mean speed are summarised by their mean over repetitions with a 95 % "
     "percentile-bootstrap interval (seeded: the same recordings give the same numbers). Lengths are in the "
-    "units of the uploaded x, y, times in those of t.",
+    "units of the uploaded x, y, times in those of t. `learned` is the learned-reward readout of the "
+    "demonstrator's latest succeeded job (null without one), as in the comparison.",
     responses={
         404: {"description": "No such demonstrator in your lab (problem+json)."},
         409: {"description": "The demonstrator has no recordings (problem+json with the reason)."},
     },
 )
 def motion_summary(demonstrator_id: str, session: SessionDep, lab: LabDep) -> MotionSummaryOut:
-    """Per direction: n_segments and each descriptor's mean, low, high."""
+    """Per direction: n_segments and each descriptor's mean, low, high; the latest learned readout."""
     demonstrator = get_demonstrator(session, demonstrator_id, lab_id=lab.id)
     return MotionSummaryOut.model_validate(readout.motion_summary(session, demonstrator))
 

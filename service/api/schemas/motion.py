@@ -55,6 +55,31 @@ class DirectionSummary(BaseModel):
     mean_speed: Interval = Field(description="Path length over duration.")
 
 
+class LearnedDirection(BaseModel):
+    """The learned rewards of one direction task of a job."""
+
+    direction: str
+    task_id: str
+    reward_id: str
+    n_visited_states: int = Field(description="States the task's demonstrations visit.")
+    baseline_ring_centred: float | None = Field(
+        description="Mean over those states of the baseline minus its mean at the same distance from the "
+        "centre (docs/motion.md): higher = the baseline favours this direction's path."
+    )
+    task_baseline_pearson: float = Field(description="Pearson r of task reward and baseline on those states.")
+
+
+class LearnedReadout(BaseModel):
+    """The learned-reward readout of a demonstrator's latest succeeded job."""
+
+    job_id: str
+    baseline_reward_id: str | None
+    caveat: str = Field(description="What a baseline learned from out-and-back movements can and cannot say.")
+    directions: list[LearnedDirection] = Field(
+        description="Tasks named by a direction on a velocity grid (as recordings make them)."
+    )
+
+
 class MotionSummaryOut(BaseModel):
     """A demonstrator's kinematic readout from its recordings (movements pooled over recordings)."""
 
@@ -66,6 +91,7 @@ class MotionSummaryOut(BaseModel):
                     "units": UNITS,
                     "n_recordings": 1,
                     "directions": [DIRECTION_EXAMPLE],
+                    "learned": None,
                 }
             ]
         }
@@ -75,6 +101,9 @@ class MotionSummaryOut(BaseModel):
     units: dict[str, str] = Field(description="Each descriptor's unit: those of the uploaded t, x, y.")
     n_recordings: int
     directions: list[DirectionSummary] = Field(description="Directions with movements, in canonical order.")
+    learned: LearnedReadout | None = Field(
+        description="The learned-reward readout of the demonstrator's latest succeeded job; null without one."
+    )
 
 
 class MotionComparisonIn(BaseModel):
@@ -113,31 +142,6 @@ class ComparedSummary(BaseModel):
     demonstrator_id: str
     name: str
     directions: list[DirectionSummary]
-
-
-class LearnedDirection(BaseModel):
-    """The learned rewards of one direction task of a job."""
-
-    direction: str
-    task_id: str
-    reward_id: str
-    n_visited_states: int = Field(description="States the task's demonstrations visit.")
-    baseline_ring_centred: float | None = Field(
-        description="Mean over those states of the baseline minus its mean at the same distance from the "
-        "centre (docs/motion.md): higher = the baseline favours this direction's path."
-    )
-    task_baseline_pearson: float = Field(description="Pearson r of task reward and baseline on those states.")
-
-
-class LearnedReadout(BaseModel):
-    """The learned-reward readout of a demonstrator's latest succeeded job."""
-
-    job_id: str
-    baseline_reward_id: str | None
-    caveat: str = Field(description="What a baseline learned from out-and-back movements can and cannot say.")
-    directions: list[LearnedDirection] = Field(
-        description="Tasks named by a direction on a velocity grid (as recordings make them)."
-    )
 
 
 class LearnedSides(BaseModel):

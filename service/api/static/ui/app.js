@@ -24,10 +24,14 @@ const state = {
   rows: new Map(), // id -> {tr, errorTr}
   watching: new Map(), // id -> AbortController
   selected: null, // job id whose results are shown
-  blobUrls: [],
+  motion: null, // demonstrator id whose motion readout is shown
+  blobUrls: { results: [], comparison: [] }, // object URLs of the pictures shown, by the view that shows them
   listTimer: null,
   generation: 0, // bumped when the key changes, so late answers for the old key are dropped
   resultsCall: 0, // bumped by each showResults, so an earlier call's late answers never redraw the results
+  motionCall: 0, // the same for showMotion
+  comparisonCall: 0, // the same for showComparison
+  webhooksCall: 0, // the same for loadWebhooks: an earlier listing never redraws over a later one
   mode: "", // how progress arrives: "stream" or "polling"
   openStreams: 0,
 };
@@ -150,6 +154,9 @@ function forgetKey() {
 function stopAll() {
   state.generation += 1;
   state.resultsCall += 1;
+  state.motionCall += 1;
+  state.comparisonCall += 1;
+  state.webhooksCall += 1;
   for (const controller of state.watching.values()) controller.abort();
   state.watching.clear();
   clearInterval(state.listTimer);
@@ -158,8 +165,13 @@ function stopAll() {
   state.rows.clear();
   state.demonstrators.clear();
   state.selected = null;
+  state.motion = null;
   $("jobs").replaceChildren();
   $("results").hidden = true;
+  $("motion").hidden = true;
+  $("webhooks").replaceChildren();
+  hideSecret();
+  $("webhook-error").hidden = true;
   releaseBlobs();
 }
 
@@ -167,7 +179,7 @@ async function loadEverything() {
   const generation = state.generation;
   try {
     await loadDemonstrators(generation);
-    await loadJobs(generation);
+    await Promise.all([loadJobs(generation), loadWebhooks(generation)]);
   } catch (error) {
     if (generation === state.generation) reportError(error);
     return;
@@ -175,6 +187,7 @@ async function loadEverything() {
   clearInterval(state.listTimer);
   state.listTimer = setInterval(() => {
     loadJobs(state.generation).catch(reportError);
+    loadWebhooks(state.generation).catch(reportError);
   }, JOB_LIST_MS);
 }
 
@@ -206,7 +219,7 @@ function renderDemonstrators() {
     ...[...state.demonstrators.values()].map((d) =>
       el(
         "div",
-        { class: "dem", "data-demonstrator": d.id },
+        { class: `dem${state.motion === d.id ? " selected" : ""}`, "data-demonstrator": d.id },
         el("div", { class: "dem-name" }, d.name),
         el("div", { class: "id" }, d.id),
         d.tasks.length
@@ -232,6 +245,8 @@ function renderDemonstrators() {
               d.recordings
                 .map((r) => `${r.name} (${r.n_samples} samples, ${fmt(r.duration, 1)} s)`)
                 .join("; "),
+              " ",
+              el("button", { class: "small quiet", "data-action": "motion", onclick: () => showMotion(d.id, { scroll: true }) }, "Motion readout"),
             )
           : el("div", { class: "sub" }, "no recordings"),
       ),
@@ -473,21 +488,25 @@ async function poll(id, signal) {
 
 // ---- results -------------------------------------------------------------------------------------
 
-function releaseBlobs() {
-  for (const url of state.blobUrls) URL.revokeObjectURL(url);
-  state.blobUrls = [];
+// Revoke the object URLs of one view's pictures ("results" or "comparison"), or of every view.
+function releaseBlobs(view) {
+  for (const name of view ? [view] : Object.keys(state.blobUrls)) {
+    for (const url of state.blobUrls[name]) URL.revokeObjectURL(url);
+    state.blobUrls[name] = [];
+  }
 }
 
-async function showResults(id) {
+async function showResults(id, { scroll = false } = {}) {
   const call = ++state.resultsCall;
   const current = () => call === state.resultsCall;
   state.selected = id;
   for (const [jobId, row] of state.rows) row.tr.className = jobId === id ? "selected" : "";
-  releaseBlobs();
+  releaseBlobs("results");
   const section = $("results");
   section.hidden = false;
   section.dataset.job = id;
   $("results-title").textContent = `Results of ${id}`;
+  if (scroll) section.scrollIntoView({ block: "start" });
   $("heatmaps").replaceChildren(el("p", { class: "empty" }, "Loading…"));
   $("matrix").replaceChildren();
   $("key-states").replaceChildren();
@@ -527,22 +546,25 @@ function renderHeatmaps(rewards, current) {
         `min ${fmt(s.min)} · max ${fmt(s.max)} (state ${s.argmax_state})`,
         reward.truth_pearson !== null ? ` · r vs truth ${fmt(reward.truth_pearson, 2)}` : "",
       ),
+      // How to read this reward, where the API says it needs saying (a velocity-grid baseline, sharing none).
+      reward.note ? el("details", { class: "note", "data-role": "note" }, el("summary", {}, "How to read this baseline"), reward.note) : null,
     );
-    if (reward.links.png) loadImage(picture, reward.links.png, current);
+    if (reward.links.png) loadImage(picture, "results", current, reward.links.png);
     return card;
   });
   $("heatmaps").replaceChildren(...cards);
 }
 
-async function loadImage(img, link, current) {
+// Fetch a picture with the key and show it from a blob: URL, kept with the view's others until released.
+async function loadImage(img, view, current, path, options) {
   try {
-    const blob = await (await api(link)).blob();
+    const blob = await (await api(path, options)).blob();
     if (!current()) return;
     const url = URL.createObjectURL(blob);
-    state.blobUrls.push(url);
+    state.blobUrls[view].push(url);
     img.src = url;
   } catch (error) {
-    img.replaceWith(el("div", { class: "nopic" }, `Heatmap unavailable: ${error.message}`));
+    if (current()) img.replaceWith(el("div", { class: "nopic" }, `${img.alt}: unavailable (${error.message})`));
   }
 }
 
@@ -595,6 +617,372 @@ function renderKeyStates(tasks, all) {
   $("key-states").replaceChildren(...(tables.length ? tables : [el("p", { class: "empty" }, "No tasks.")]));
 }
 
+// ---- motion readout ------------------------------------------------------------------------------
+
+// The kinematic descriptors of GET /v1/demonstrators/{id}/motion-summary, in the API's order.
+const DESCRIPTORS = [
+  ["peak_reach", "peak reach"],
+  ["path_length", "path length"],
+  ["deviation", "deviation"],
+  ["time_to_peak_s", "time to peak"],
+  ["mean_speed", "mean speed"],
+];
+
+function loading() {
+  return el("p", { class: "empty" }, "Loading…");
+}
+
+function unavailable(error) {
+  return el("p", { class: "empty" }, `Unavailable: ${error.message}`);
+}
+
+// Whether a 95 % interval leaves out 0 (null bounds: one repetition, no interval).
+function clearOfZero(v) {
+  return v.low !== null && v.high !== null && (v.low > 0 || v.high < 0);
+}
+
+// A mean with its 95 % interval below it (none with a single repetition).
+function intervalCell(v, className = "") {
+  return el(
+    "td",
+    { class: `num ${className}` },
+    fmt(v.mean),
+    el("div", { class: "ci" }, v.low === null || v.high === null ? "" : `[${fmt(v.low)}, ${fmt(v.high)}]`),
+  );
+}
+
+// "peak reach, path length, deviation: x, y units (as uploaded) · …": each unit once, with what it measures.
+function unitsNote(units) {
+  const groups = new Map();
+  for (const [key, label] of DESCRIPTORS) {
+    if (units[key]) groups.set(units[key], [...(groups.get(units[key]) || []), label]);
+  }
+  return [...groups].map(([unit, labels]) => `${labels.join(", ")}: ${unit}`).join(" · ");
+}
+
+async function showMotion(id, { scroll = false } = {}) {
+  const call = ++state.motionCall;
+  const current = () => call === state.motionCall;
+  state.motion = id;
+  for (const node of document.querySelectorAll("#demonstrators .dem")) {
+    node.classList.toggle("selected", node.dataset.demonstrator === id);
+  }
+  const section = $("motion");
+  section.hidden = false;
+  section.dataset.demonstrator = id;
+  $("motion-title").textContent = `Motion readout of ${demonstratorName(id)}`;
+  $("motion-meta").textContent = "";
+  $("kinematics").replaceChildren(loading());
+  $("learned").replaceChildren();
+  renderPartners(id);
+  if (scroll) section.scrollIntoView({ block: "start" });
+  showComparison();
+  let box = $("kinematics");
+  try {
+    const summary = await getJson(`/v1/demonstrators/${encodeURIComponent(id)}/motion-summary`);
+    if (!current()) return;
+    $("motion-meta").textContent = `${summary.n_recordings} recording${summary.n_recordings === 1 ? "" : "s"}`;
+    renderKinematics(summary);
+    box = $("learned");
+    box.replaceChildren(loading());
+    await renderLearned(summary.learned, current);
+  } catch (error) {
+    if (!current()) return;
+    box.replaceChildren(unavailable(error));
+    reportError(error);
+  }
+}
+
+function renderKinematics(summary) {
+  const table = el(
+    "table",
+    { class: "readout kinematics" },
+    el(
+      "thead",
+      {},
+      el("tr", {}, el("th", {}, "direction"), el("th", { title: "out-and-back movements" }, "n"), DESCRIPTORS.map(([key, label]) => el("th", { title: summary.units[key] }, label))),
+    ),
+    el(
+      "tbody",
+      {},
+      summary.directions.map((d) =>
+        el("tr", { "data-direction": d.direction }, el("th", { class: "row" }, d.direction), el("td", { class: "num" }, d.n_segments), DESCRIPTORS.map(([key]) => intervalCell(d[key]))),
+      ),
+    ),
+  );
+  $("kinematics").replaceChildren(table, el("p", { class: "units" }, unitsNote(summary.units)));
+}
+
+// Table I of the paper, as the API reads it out: per direction task of the job, the states its
+// demonstrations visit, the ring-centred baseline there, the task reward's r with the baseline there, and
+// (where the tasks carry a true reward) the task reward's r with it from the job's rewards listing.
+async function renderLearned(learned, current) {
+  if (!learned) {
+    $("learned").replaceChildren(el("p", { class: "empty" }, "No job on this demonstrator has succeeded yet: the readout of its learned rewards shows here once one has."));
+    return;
+  }
+  const rewards = await getJson(`/v1/jobs/${encodeURIComponent(learned.job_id)}/rewards`);
+  if (!current()) return;
+  const truth = new Map(rewards.tasks.map((t) => [t.task_id, t.truth_pearson]));
+  const withTruth = learned.directions.some((d) => truth.get(d.task_id) !== null && truth.get(d.task_id) !== undefined);
+  const heads = ["direction", "visited states", "baseline, ring-centred", "r(task, baseline)"];
+  const table = learned.directions.length
+    ? el(
+        "table",
+        { class: "readout learned" },
+        el("thead", {}, el("tr", {}, [...heads, ...(withTruth ? ["r vs truth"] : [])].map((h) => el("th", {}, h)))),
+        el(
+          "tbody",
+          {},
+          learned.directions.map((d) =>
+            el(
+              "tr",
+              { "data-direction": d.direction },
+              el("th", { class: "row" }, d.direction),
+              el("td", { class: "num" }, d.n_visited_states),
+              el("td", { class: `num ${d.baseline_ring_centred === null ? "" : d.baseline_ring_centred >= 0 ? "pos" : "neg"}` }, fmt(d.baseline_ring_centred, 3)),
+              el("td", { class: "num" }, fmt(d.task_baseline_pearson, 2)),
+              withTruth ? el("td", { class: "num" }, fmt(truth.get(d.task_id), 2)) : null,
+            ),
+          ),
+        ),
+      )
+    : el("p", { class: "empty" }, "The job has no direction tasks on a velocity grid, so there is nothing to read out per direction.");
+  $("learned").replaceChildren(
+    el(
+      "div",
+      { class: "learned-job" },
+      "job ",
+      el("span", { class: "id" }, learned.job_id),
+      " ",
+      el("button", { class: "small quiet", "data-action": "results", onclick: () => showResults(learned.job_id, { scroll: true }) }, "Heatmaps"),
+    ),
+    table,
+    el("p", { class: "caveat", "data-role": "caveat" }, learned.caveat),
+  );
+}
+
+// The other demonstrators with recordings, as the sessions to compare with; the choice is kept if it still fits.
+function renderPartners(id) {
+  $("compare-label").textContent = `${demonstratorName(id)} (a), against b =`;
+  const select = $("compare-with");
+  const previous = select.value;
+  const others = [...state.demonstrators.values()].filter((d) => d.id !== id && d.recordings.length > 0);
+  select.replaceChildren(...others.map((d) => el("option", { value: d.id }, d.name)));
+  if (others.some((d) => d.id === previous)) select.value = previous;
+  select.disabled = others.length === 0;
+}
+
+async function showComparison() {
+  const call = ++state.comparisonCall;
+  const current = () => call === state.comparisonCall;
+  releaseBlobs("comparison");
+  const a = state.motion;
+  const b = $("compare-with").value;
+  const box = $("comparison");
+  if (!a || !b) {
+    box.replaceChildren(el("p", { class: "empty" }, "Upload recordings for another demonstrator (another session) to compare with."));
+    return;
+  }
+  box.dataset.b = b;
+  box.replaceChildren(loading());
+  const options = { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify({ a, b }) };
+  try {
+    const comparison = await getJson("/v1/motion-comparisons", options);
+    if (!current()) return;
+    const img = el("img", { alt: `Comparison figure of ${comparison.b.name} and ${comparison.a.name}` });
+    box.replaceChildren(el("figure", { class: "comparison-figure" }, img), renderDifferences(comparison));
+    loadImage(img, "comparison", current, comparison.links.png, options);
+  } catch (error) {
+    if (!current()) return;
+    box.replaceChildren(unavailable(error));
+    reportError(error);
+  }
+}
+
+function renderDifferences(c) {
+  return el(
+    "table",
+    { class: "readout differences" },
+    el("caption", {}, `${c.b.name} − ${c.a.name} (b − a) per direction; coloured where the 95 % interval leaves out 0`),
+    el(
+      "thead",
+      {},
+      el("tr", {}, el("th", {}, "direction"), el("th", { title: "movements of a, of b" }, "n a, b"), DESCRIPTORS.map(([key, label]) => el("th", { title: c.units[key] }, `Δ ${label}`))),
+    ),
+    el(
+      "tbody",
+      {},
+      c.directions.map((d) =>
+        el(
+          "tr",
+          { "data-direction": d.direction },
+          el("th", { class: "row" }, d.direction),
+          el("td", { class: "num" }, `${d.n_a}, ${d.n_b}`),
+          DESCRIPTORS.map(([key]) => {
+            const v = d[`${key}_diff`];
+            return intervalCell(v, clearOfZero(v) ? (v.mean > 0 ? "pos clear" : "neg clear") : "");
+          }),
+        ),
+      ),
+    ),
+  );
+}
+
+// ---- webhooks ------------------------------------------------------------------------------------
+
+const DELIVERY_EVENTS = ["job.succeeded", "job.failed", "job.cancelled"];
+
+async function loadWebhooks(generation) {
+  const call = ++state.webhooksCall;
+  const hooks = await getAll("/v1/webhooks");
+  // The listing leaves the deliveries out: each webhook's own page has its latest ones.
+  const detailed = await Promise.all(
+    hooks.map((h) =>
+      getJson(`/v1/webhooks/${encodeURIComponent(h.id)}`).catch((error) => {
+        if (error instanceof ApiError && error.status === 404) return null; // deleted meanwhile
+        throw error;
+      }),
+    ),
+  );
+  if (generation !== state.generation || call !== state.webhooksCall) return;
+  renderWebhooks(detailed.filter(Boolean));
+}
+
+function when(iso) {
+  return iso ? new Date(iso).toLocaleString() : "–";
+}
+
+// The newest delivery's state, with the counts of the latest ones the API keeps.
+function deliveryState(deliveries) {
+  if (deliveries.length === 0) return el("span", { class: "meta" }, "no deliveries yet");
+  const d = deliveries[0];
+  const detail = {
+    delivered: `${d.type} · ${when(d.delivered_at)}`,
+    pending: `${d.type} · attempt ${d.attempts}, next ${when(d.next_attempt_at)}`,
+    failed: `${d.type} · gave up after ${d.attempts} attempts`,
+  }[d.status];
+  const counts = ["delivered", "pending", "failed"]
+    .map((status) => [status, deliveries.filter((x) => x.status === status).length])
+    .filter(([, n]) => n > 0)
+    .map(([status, n]) => `${n} ${status}`)
+    .join(", ");
+  return el(
+    "div",
+    {},
+    el("span", { class: `badge ${d.status}`, "data-role": "delivery" }, d.status),
+    " ",
+    el("span", { class: "meta" }, detail),
+    d.last_error && d.status !== "delivered" ? el("div", { class: "error" }, d.last_error) : null,
+    deliveries.length > 1 ? el("div", { class: "meta" }, `latest ${deliveries.length}: ${counts}`) : null,
+  );
+}
+
+function renderWebhooks(hooks) {
+  $("webhooks").replaceChildren(
+    ...hooks.map((h) =>
+      el(
+        "tr",
+        { "data-webhook": h.id },
+        el("td", { class: "url" }, el("div", { title: h.url }, h.url), el("div", { class: "id" }, h.id)),
+        el("td", {}, DELIVERY_EVENTS.filter((e) => h.events.includes(e)).map((e) => e.replace("job.", "")).join(", ")),
+        el("td", {}, deliveryState(h.deliveries)),
+        el("td", { class: "bar-text" }, when(h.created_at)),
+        el("td", { class: "actions" }, el("button", { class: "danger small", "data-action": "delete", onclick: () => deleteWebhook(h) }, "Delete")),
+      ),
+    ),
+  );
+  $("webhooks-empty").hidden = hooks.length > 0;
+}
+
+function formError(text) {
+  $("webhook-error").textContent = text;
+  $("webhook-error").hidden = !text;
+}
+
+async function addWebhook(event) {
+  event.preventDefault();
+  const generation = state.generation;
+  const events = [...$("webhook-form").querySelectorAll("input[name=events]:checked")].map((i) => i.value);
+  if (events.length === 0) {
+    formError("Tick at least one event.");
+    return;
+  }
+  formError("");
+  $("webhook-add").disabled = true;
+  try {
+    const created = await getJson("/v1/webhooks", {
+      method: "POST",
+      headers: { "Content-Type": "application/json" },
+      body: JSON.stringify({ url: $("webhook-url").value.trim(), events }),
+    });
+    if (generation !== state.generation) return;
+    $("webhook-url").value = "";
+    showSecret(created);
+    await loadWebhooks(generation);
+  } catch (error) {
+    if (generation !== state.generation) return;
+    if (error instanceof ApiError && error.status !== 401) formError(`${error.status}: ${error.message}`);
+    else reportError(error);
+  } finally {
+    $("webhook-add").disabled = false;
+  }
+}
+
+// The API shows a webhook's signing secret in the creation answer only; so does the page, until "Done".
+function showSecret(created) {
+  const value = el("code", { class: "secret-value", "data-role": "secret" }, created.secret);
+  const copy = el("button", { class: "small", type: "button", "data-action": "copy-secret", onclick: () => copySecret(value, copy) }, "Copy");
+  const box = $("webhook-secret");
+  box.dataset.webhook = created.id;
+  box.replaceChildren(
+    el(
+      "div",
+      {},
+      el("strong", {}, "Signing secret of the new webhook, shown this once: copy it now. "),
+      "The receiver verifies each delivery's ",
+      el("code", {}, "webhook-signature"),
+      " header with it (Standard Webhooks); it cannot be read again, only replaced by a new webhook.",
+    ),
+    el("div", { class: "secret-row" }, value, copy, el("button", { class: "small quiet", type: "button", "data-action": "dismiss-secret", onclick: hideSecret }, "Done")),
+  );
+  box.hidden = false;
+}
+
+function hideSecret() {
+  const box = $("webhook-secret");
+  box.replaceChildren();
+  delete box.dataset.webhook;
+  box.hidden = true;
+}
+
+async function copySecret(node, button) {
+  try {
+    await navigator.clipboard.writeText(node.textContent);
+    button.textContent = "Copied";
+  } catch (_) {
+    // No clipboard access (a page served over plain http from another host): select it for Ctrl+C.
+    const range = document.createRange();
+    range.selectNodeContents(node);
+    getSelection().removeAllRanges();
+    getSelection().addRange(range);
+    button.textContent = "Selected: press Ctrl+C";
+  }
+}
+
+async function deleteWebhook(hook) {
+  if (!confirm(`Delete the webhook to ${hook.url}? Deliveries not yet sent are dropped.`)) return;
+  const generation = state.generation;
+  try {
+    await api(`/v1/webhooks/${encodeURIComponent(hook.id)}`, { method: "DELETE" });
+    if (generation !== state.generation) return;
+    if ($("webhook-secret").dataset.webhook === hook.id) hideSecret();
+    await loadWebhooks(generation);
+  } catch (error) {
+    if (generation === state.generation) reportError(error);
+  }
+}
+
 // ---- start ---------------------------------------------------------------------------------------
 
 document.addEventListener("DOMContentLoaded", () => {
@@ -605,7 +993,13 @@ document.addEventListener("DOMContentLoaded", () => {
   $("key-forget").addEventListener("click", forgetKey);
   $("refresh").addEventListener("click", () => {
     const selected = state.selected;
-    loadEverything().then(() => selected && state.jobs.has(selected) && showResults(selected));
+    const motion = state.motion;
+    loadEverything().then(() => {
+      if (selected && state.jobs.has(selected)) showResults(selected);
+      if (motion && state.demonstrators.has(motion)) showMotion(motion);
+    });
   });
+  $("compare-with").addEventListener("change", showComparison);
+  $("webhook-form").addEventListener("submit", addWebhook);
   if (state.key) useKey(state.key);
 });

@@ -1,0 +1,58 @@
+"""What the dashboard tests share: the screenshots' folder, the laptop viewport, HTTP helpers for a served
+API, and opening the page with a key."""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING, Any
+
+import httpx
+
+from tests.served import REPO
+
+if TYPE_CHECKING:
+    from playwright.sync_api import Browser, Page, ViewportSize
+
+ARTIFACTS = REPO / "test-artifacts" / "ui"
+"""Screenshots (look at them after a change to the page)."""
+LAPTOP: ViewportSize = {"width": 1366, "height": 768}
+QUICK = {"max_steps": 300, "hidden": [16], "tolerance": 0, "patience": 0, "seed": 0}
+"""A fit of small tasks that takes a second or a few once a worker has it."""
+TERMINAL = {"succeeded", "failed", "cancelled"}
+
+
+def ok(response: httpx.Response, status: int = 201) -> dict[str, Any]:
+    """The JSON body of a response that must have ``status``."""
+    assert response.status_code == status, response.text
+    body: dict[str, Any] = response.json()
+    return body
+
+
+def submit(http: httpx.Client, demonstrator_id: str, config: dict[str, Any]) -> str:
+    """POST a job; its id."""
+    return str(
+        ok(http.post("/v1/jobs", json={"demonstrator_id": demonstrator_id, "config": config}), 202)["id"]
+    )
+
+
+def wait_until_succeeded(http: httpx.Client, job_id: str, timeout: float = 180.0) -> None:
+    """Poll until the job succeeded (the worker's first start imports torch: allow for a loaded machine)."""
+    deadline = time.monotonic() + timeout
+    while (job := ok(http.get(f"/v1/jobs/{job_id}"), 200))["status"] != "succeeded":
+        assert job["status"] not in TERMINAL, job
+        assert time.monotonic() < deadline, f"not finished after {timeout} s: {job}"
+        time.sleep(0.3)
+
+
+def open_dashboard(browser: Browser, url: str, key: str) -> tuple[Page, list[str]]:
+    """A laptop-sized page on /ui with the key pasted; and the list its script errors are added to."""
+    page = browser.new_page(viewport=LAPTOP)
+    errors: list[str] = []
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    page.set_default_timeout(60_000)
+    page.goto(f"{url}/ui")
+    assert page.title() == "metairl dashboard"
+    assert page.locator("#main").is_hidden() and page.locator("#welcome").is_visible()  # no key yet
+    page.fill("#key-input", key)
+    page.click("#key-use")
+    return page, errors

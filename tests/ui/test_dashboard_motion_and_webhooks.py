@@ -1,0 +1,244 @@
+"""The dashboard's motion readout and webhooks panel in a real browser (the system chromium, driven by
+Playwright) against a real `metairl serve` (API and worker; private webhook targets allowed, so the worker
+delivers to a receiver in this process): two sessions' recordings read out per direction beside the learned
+rewards and compared; a webhook added from the form, its secret shown once, its delivery shown, deleted.
+
+Screenshots go to `test-artifacts/ui/` in the repository root (look at them after a change to the page).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import threading
+import time
+from collections.abc import Iterator
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from typing import TYPE_CHECKING, Any
+
+import httpx
+import pytest
+
+from service.jobs.webhooks import sign
+from tests.served import Served, metairl_serve
+from tests.service.helpers import PLATE, cop_rows
+from tests.ui.helpers import ARTIFACTS, QUICK, ok, open_dashboard, submit, wait_until_succeeded
+
+if TYPE_CHECKING:
+    from playwright.sync_api import Browser, Page
+
+pytestmark = [pytest.mark.worker, pytest.mark.slow, pytest.mark.browser]
+
+UNSTIMULATED = {"forward": 0.10, "right": 0.10, "left": 0.05}
+STIMULATED = {"forward": 0.13, "right": 0.13, "left": 0.08}
+"""Peak reach per direction (metres) of one patient's two sessions: stimulation adds 3 cm everywhere."""
+Received = list[tuple[dict[str, str], bytes]]
+
+
+@pytest.fixture(scope="module")
+def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Served]:
+    """`metairl serve`: the API and one worker, accepting webhook targets on this machine."""
+    settings = {"METAIRL_WEBHOOK_ALLOW_PRIVATE": "true"}
+    with metairl_serve(tmp_path_factory.mktemp("serve"), settings=settings) as served:
+        yield served
+
+
+@contextlib.contextmanager
+def receiver() -> Iterator[tuple[str, Received]]:
+    """An HTTP server on this machine that answers 204 to every POST: its URL, and the requests it got."""
+    got: Received = []
+
+    class Hook(BaseHTTPRequestHandler):
+        def do_POST(self) -> None:
+            body = self.rfile.read(int(self.headers["content-length"]))
+            got.append(({k.lower(): v for k, v in self.headers.items()}, body))
+            self.send_response(204)
+            self.end_headers()
+
+        def log_message(self, format: str, *args: Any) -> None:
+            """Quiet."""
+
+    server = ThreadingHTTPServer(("127.0.0.1", 0), Hook)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{server.server_port}/hook", got
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+def recorded(http: httpx.Client, name: str, reach: dict[str, float], seed: int = 0) -> str:
+    """A demonstrator with one recording (three out-and-back movements per direction of ``reach``) on a 10×10
+    velocity grid; its id."""
+    dem = ok(http.post("/v1/demonstrators", json={"name": name}))
+    body = {
+        "name": f"{name}, force plate",
+        "bounds": PLATE,
+        "grid": {"width": 10, "height": 10, "gamma": 0.9},
+        "samples": cop_rows(reach, seed=seed),
+    }
+    ok(http.post(f"/v1/demonstrators/{dem['id']}/recordings", json=body))
+    return str(dem["id"])
+
+
+def directions(page: Page, table: str) -> list[str]:
+    """The directions of a readout table's rows, top to bottom."""
+    found: list[str] = page.locator(f"{table} tbody tr").evaluate_all(
+        "rs => rs.map(r => r.dataset.direction)"
+    )
+    return found
+
+
+def test_dashboard_reads_out_a_sessions_motion_beside_its_learned_rewards_and_compares_two_sessions(
+    served: Served, browser: Browser
+) -> None:
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    http = httpx.Client(base_url=served.url, headers={"Authorization": f"Bearer {served.key}"}, timeout=60)
+    before = recorded(http, "P1 unstimulated", UNSTIMULATED)
+    after = recorded(http, "P1 stimulated", STIMULATED, seed=1)
+    job_id = submit(http, before, QUICK)
+    wait_until_succeeded(http, job_id)
+    summary = ok(http.get(f"/v1/demonstrators/{before}/motion-summary"), 200)
+    comparison = ok(http.post("/v1/motion-comparisons", json={"a": before, "b": after}), 200)
+
+    page, errors = open_dashboard(browser, served.url, served.key)
+    page.click(f"[data-demonstrator='{before}'] [data-action='motion']")
+    page.wait_for_selector(f"#motion[data-demonstrator='{before}'] #kinematics tbody tr")
+    assert page.locator("#motion-title").inner_text() == "Motion readout of P1 unstimulated"
+    assert page.locator(f".dem[data-demonstrator='{before}']").get_attribute("class") == "dem selected"
+    # Kinematics: a row per direction as the API orders them, each mean with its interval below.
+    assert directions(page, "#kinematics") == [d["direction"] for d in summary["directions"]]
+    left = next(d for d in summary["directions"] if d["direction"] == "left")
+    cells = page.locator("#kinematics tr[data-direction='left'] td")
+    assert cells.nth(0).inner_text() == str(left["n_segments"]) == "3"
+    reach = left["peak_reach"]
+    assert cells.nth(1).inner_text().split("\n") == [
+        f"{reach['mean']:.3f}",
+        f"[{reach['low']:.3f}, {reach['high']:.3f}]",
+    ]
+    assert "x, y units (as uploaded)" in page.locator("#kinematics .units").inner_text()
+
+    # The learned readout of the succeeded job, per direction, with the API's caveat on the baseline.
+    page.wait_for_selector("#learned tbody tr")
+    assert sorted(directions(page, "#learned")) == sorted(UNSTIMULATED)
+    assert job_id in page.locator("#learned .learned-job").inner_text()
+    assert "distance from the centre" in page.locator("#learned [data-role='caveat']").inner_text()
+
+    # The session comparison: the other recorded demonstrator is b; the figure and b − a per direction.
+    assert page.locator("#compare-with").input_value() == after
+    page.wait_for_function(
+        "() => { const img = document.querySelector('#comparison img');"
+        " return img && img.complete && img.naturalWidth > 0; }"
+    )
+    assert page.locator("#comparison img").evaluate("img => img.src.startsWith('blob:')")
+    assert page.locator("#comparison caption").inner_text().startswith("P1 stimulated − P1 unstimulated")
+    assert directions(page, "#comparison") == [d["direction"] for d in comparison["directions"]]
+    gain = page.locator("#comparison tr[data-direction='left'] td").nth(1)
+    assert gain.get_attribute("class") == "num pos clear"  # 3 cm more reach, the interval above 0
+    diff = next(d for d in comparison["directions"] if d["direction"] == "left")["peak_reach_diff"]
+    assert gain.inner_text().split("\n")[0] == f"{diff['mean']:.3f}"
+    page.screenshot(path=ARTIFACTS / "4-motion.png")
+    page.screenshot(path=ARTIFACTS / "5-motion-full.png", full_page=True)
+
+    # From the readout to the job's heatmaps: the baseline carries the API's note on velocity grids.
+    page.click("#learned [data-action='results']")
+    page.wait_for_selector(f"#results[data-job='{job_id}'] figure.baseline [data-role='note']")
+    note = page.locator("#heatmaps figure.baseline [data-role='note']")
+    note.locator("summary").click()
+    assert "distance from the centre" in note.inner_text()
+    page.wait_for_function(
+        "() => { const imgs = [...document.querySelectorAll('#heatmaps img')];"
+        " return imgs.length === 4 && imgs.every(i => i.complete && i.naturalWidth > 0); }"
+    )
+    assert page.locator("#heatmaps figure.task [data-role='note']").count() == 0
+    page.locator("#heatmaps figure.baseline").scroll_into_view_if_needed()
+    page.screenshot(path=ARTIFACTS / "6-baseline-note.png")
+
+    # The other session: compared with the first (now b), no learned readout without a job of its own.
+    page.click(f"[data-demonstrator='{after}'] [data-action='motion']")
+    page.wait_for_selector("#comparison caption:has-text('P1 unstimulated − P1 stimulated')")
+    assert page.locator("#compare-with").input_value() == before
+    loss = page.locator("#comparison tr[data-direction='left'] td").nth(1)
+    assert loss.get_attribute("class") == "num neg clear"
+    page.wait_for_selector("#learned :text('No job on this demonstrator has succeeded yet')")
+    assert page.locator(f".dem[data-demonstrator='{before}']").get_attribute("class") == "dem"
+    assert errors == []
+
+
+def test_dashboard_adds_a_webhook_shows_its_secret_once_and_its_delivery_and_deletes_it(
+    served: Served, browser: Browser
+) -> None:
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    http = httpx.Client(base_url=served.url, headers={"Authorization": f"Bearer {served.key}"}, timeout=60)
+    with receiver() as (hook_url, got):
+        page, errors = open_dashboard(browser, served.url, served.key)
+        page.context.grant_permissions(["clipboard-read", "clipboard-write"], origin=served.url)
+        panel = page.locator("section.webhooks")
+        # A URL the API refuses: its reason shows under the form, nothing is added.
+        page.fill("#webhook-url", "ftp://lab.example.org/hook")
+        page.click("#webhook-add")
+        page.wait_for_selector("#webhook-error:has-text('http:// or https://')")
+        assert "422" in page.locator("#webhook-error").inner_text()
+        assert ok(http.get("/v1/webhooks"), 200)["data"] == []
+
+        page.fill("#webhook-url", hook_url)
+        page.uncheck("input[name='events'][value='job.cancelled']")
+        page.click("#webhook-add")
+        row = page.locator("#webhooks tr[data-webhook]")
+        page.wait_for_selector(f"#webhooks tr[data-webhook]:has-text('{hook_url}')")
+        assert page.locator("#webhook-error").is_hidden() and page.locator("#webhook-url").input_value() == ""
+        secret = page.locator("[data-role='secret']").inner_text()
+        assert secret.startswith("whsec_")
+        hook_id = row.get_attribute("data-webhook")
+        listed = ok(http.get("/v1/webhooks"), 200)["data"]
+        assert [(h["id"], h["url"], h["events"]) for h in listed] == [
+            (hook_id, hook_url, ["job.failed", "job.succeeded"])
+        ]
+        assert secret not in json.dumps(listed)
+        assert "succeeded, failed" in row.inner_text() and "no deliveries yet" in row.inner_text()
+        page.click("[data-action='copy-secret']")
+        page.wait_for_selector("[data-action='copy-secret']:has-text('Copied')")
+        assert page.evaluate("navigator.clipboard.readText()") == secret
+        panel.scroll_into_view_if_needed()
+        page.screenshot(path=ARTIFACTS / "7-webhook-secret.png")
+
+        # A job ends: the receiver gets it signed with that secret, and the page shows the delivery.
+        job_id = submit(http, recorded(http, "P2 unstimulated", {"forward": 0.1}), QUICK)
+        wait_until_succeeded(http, job_id)
+        deadline = time.monotonic() + 60
+        while (deliveries := ok(http.get(f"/v1/webhooks/{hook_id}"), 200)["deliveries"]) == [] or deliveries[
+            0
+        ]["status"] != "delivered":
+            assert time.monotonic() < deadline, deliveries
+            time.sleep(0.3)
+        headers, body = got[0]
+        assert json.loads(body)["type"] == "job.succeeded" and json.loads(body)["data"]["id"] == job_id
+        stamp = int(headers["webhook-timestamp"])
+        assert headers["webhook-signature"] == sign(
+            secret, msg_id=headers["webhook-id"], timestamp=stamp, body=body
+        )
+        page.click("#refresh")
+        page.wait_for_selector(f"tr[data-webhook='{hook_id}'] [data-role='delivery']:has-text('delivered')")
+        assert "job.succeeded" in row.inner_text()
+
+        # The secret goes with "Done" and never comes back: not after a reload either.
+        page.click("[data-action='dismiss-secret']")
+        assert page.locator("#webhook-secret").is_hidden()
+        page.reload()
+        page.wait_for_selector(f"tr[data-webhook='{hook_id}'] [data-role='delivery']:has-text('delivered')")
+        assert secret not in page.content()
+        panel.scroll_into_view_if_needed()
+        page.screenshot(path=ARTIFACTS / "8-webhook-delivered.png")
+
+        # Delete asks first: declined, it stays; accepted, it is gone from the page and the API.
+        page.once("dialog", lambda dialog: dialog.dismiss())
+        page.click(f"tr[data-webhook='{hook_id}'] [data-action='delete']")
+        page.wait_for_timeout(500)
+        assert row.count() == 1
+        page.once("dialog", lambda dialog: dialog.accept())
+        page.click(f"tr[data-webhook='{hook_id}'] [data-action='delete']")
+        page.wait_for_selector(f"tr[data-webhook='{hook_id}']", state="detached")
+        assert page.locator("#webhooks-empty").is_visible()
+        assert ok(http.get("/v1/webhooks"), 200)["data"] == []
+    assert errors == []
