@@ -80,7 +80,8 @@ class FitConfig:
     ensemble: int = 0
     """Members K of the ensemble: each reward is the mean of K fits run side by side as one batch of T·K
     networks, member k with its own initial weights, holding out fold k of each task's steps (so together
-    they learn from every step) and keeping the step its own held-out NLL chooses. Averaging K fits cuts
+    they learn from every step); the step kept is the one their held-out folds together choose (a K-fold
+    cross-validated NLL, fit.HeldOutStopper). Averaging K fits cuts
     the variance of a reward learned from a few demonstrations; a step costs about K times as much.
     0 (default): K = 4 for small fits, fewer as tasks × states grow, 1 from 32,768 (fit.ensemble_size)."""
 

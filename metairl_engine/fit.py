@@ -370,8 +370,8 @@ def _fit_meta_irl(
     """The paper's method: joint Adam on all VR networks and the baseline network (Algorithm 1).
 
     With an ensemble the K members train side by side in the same batched ops; Adam's update is elementwise,
-    so each member follows exactly the path it would follow alone, and each keeps the step its own
-    held-out NLL chooses.
+    so each member follows exactly the path it would follow alone. The members are the K folds of a
+    cross-validation: the step kept, and when to stop, is judged by all their held-out folds together.
     """
     started = time.perf_counter()
     problem = _Problem(tasks, config)
@@ -397,8 +397,10 @@ def _fit_meta_irl(
     optimiser = torch.optim.Adam(params, lr=config.learning_rate, foreach=True)
 
     history: list[Progress] = []
-    stoppers = [HeldOutStopper(patience=config.patience) for _ in range(problem.n_members)]
-    kept = _KeptParameters(vr, base, n_tasks=problem.n_tasks)
+    # The K members are the K folds of a cross-validation: one stopper judges the step by every member's
+    # held-out NLL on its own fold, and all members keep the same step.
+    stopper = HeldOutStopper(patience=config.patience)
+    kept = [p.detach().clone() for p in params]
     previous_loss: float | None = None
     flat_steps = 0  # consecutive steps whose loss change was within the tolerance
     for step in range(1, config.max_steps + 1):
@@ -412,12 +414,12 @@ def _fit_meta_irl(
             with torch.no_grad():
                 q_held = problem.q_held(f)
                 held_nll = float(F.cross_entropy(config.confidence * q_held, problem.held_actions))
-                per_member = calibrated_nll(
+                folds = calibrated_nll(
                     q_held, problem.held_actions, confidence=config.confidence, groups=problem.held_of_member
                 )
-            for k, (stopper, per_step) in enumerate(zip(stoppers, per_member, strict=True)):
-                if stopper.update(step, per_step):
-                    kept.save(k)
+                if stopper.update(step, torch.cat(folds)):
+                    for copy, live in zip(kept, params, strict=True):
+                        copy.copy_(live)
 
         optimiser.step()
 
@@ -433,7 +435,7 @@ def _fit_meta_irl(
         history.append(record)
         if progress is not None:
             progress(record)
-        if held_nll is not None and all(s.should_stop(step) for s in stoppers):
+        if held_nll is not None and stopper.should_stop(step):
             break
         flat = previous_loss is not None and abs(record.loss - previous_loss) <= config.tolerance * max(
             abs(previous_loss), 1e-12
@@ -444,29 +446,11 @@ def _fit_meta_irl(
         previous_loss = record.loss
 
     if len(problem.held):
-        kept.restore()
-    best_step = int(np.median([s.kept_step for s in stoppers])) if len(problem.held) else len(history)
-    return _evaluate(problem, vr, base, config, history=history, best_step=best_step)
-
-
-class _KeptParameters:
-    """Per-member copies of the parameters at each member's kept step (member k: networks k·T … k·T + T − 1
-    of ``vr`` and row k of ``base``)."""
-
-    def __init__(self, vr: StackedMLP, base: StackedMLP, *, n_tasks: int):
-        self.pairs = [(p, p.detach().clone(), n_tasks) for p in vr.parameters()]
-        self.pairs += [(p, p.detach().clone(), 1) for p in base.parameters()]
-
-    def save(self, member: int) -> None:
-        """Copy member ``member``'s current parameters."""
-        for live, copy, rows in self.pairs:
-            copy[member * rows : (member + 1) * rows] = live.detach()[member * rows : (member + 1) * rows]
-
-    def restore(self) -> None:
-        """Put every member's kept parameters back into the networks."""
         with torch.no_grad():
-            for live, copy, _ in self.pairs:
+            for copy, live in zip(kept, params, strict=True):
                 live.copy_(copy)
+    best_step = stopper.kept_step if len(problem.held) else len(history)
+    return _evaluate(problem, vr, base, config, history=history, best_step=best_step)
 
 
 def _evaluate(
