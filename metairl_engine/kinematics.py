@@ -260,7 +260,7 @@ def comparison_png(
     polar.set_rlabel_position(67.5)
     polar.tick_params(axis="y", labelsize=6)
     polar.set_title(f"peak reach{unit}", fontsize=10)
-    polar.legend(loc="lower left", bbox_to_anchor=(-0.25, -0.22), fontsize=8, ncol=2)
+    polar.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), fontsize=8, ncol=1)
     rows = comparison["directions"]
     ypos = np.arange(len(rows))[::-1]
     for k, d in enumerate(DESCRIPTORS):
@@ -275,8 +275,16 @@ def comparison_png(
         ax.axvline(0.0, color="0.7", lw=1)
         ax.set_yticks(ypos, [r["direction"] for r in rows] if k == 0 else [""] * len(rows), fontsize=8)
         what = " (s)" if d == "time_to_peak_s" else unit if d in LENGTHS else f" ({units}/s)" if units else ""
-        ax.set_title(f"{LABELS[d]}{what}\n{names[1]} − {names[0]}", fontsize=9)
+        ax.set_title(f"{LABELS[d]}{what}", fontsize=9)
         ax.tick_params(axis="x", labelsize=7)
+    # Once for the five difference panels (in each panel's title, long session names ran into each other).
+    fig.text(
+        0.62,
+        1.02,
+        f"{names[1]} − {names[0]} per direction (95 % intervals; red: excludes 0)",
+        ha="center",
+        fontsize=10,
+    )
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", bbox_inches="tight")
     return buffer.getvalue()
