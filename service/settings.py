@@ -66,6 +66,10 @@ class Settings(BaseSettings):
     worker_concurrency: int = 1
     """Jobs one worker process runs at once; torch threads per job = cores owned / this."""
 
+    worker_max_memory_mb: int | None = None
+    """Memory (MiB) a worker's jobs may use, shared by those it runs at once: a job whose fit is estimated to
+    need more fails at once. None: 80 % of the memory available when the job starts."""
+
     job_heartbeat_s: float = 1.0
     """How often a running job writes its heartbeat and progress and reads its cancel flag (≤ 1 s)."""
 
