@@ -47,6 +47,11 @@ class Settings(BaseSettings):
     idempotency_ttl_s: int = 24 * 3600
     """How long an ``Idempotency-Key`` replays its first response."""
 
+    idempotency_lease_s: float = 60.0
+    """How long a claimed ``Idempotency-Key`` stays claimed without its request renewing it (every third of
+    this while it runs); a retry with the key after the lease lapsed (the API died, or the database dropped
+    before the response was recorded) runs the request again instead of answering 409."""
+
     api_key_cache_s: float = 0.0
     """How long an API process trusts a key the database confirmed; a revoked key is refused within this (0: always ask)."""
 
