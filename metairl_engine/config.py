@@ -83,7 +83,7 @@ class FitConfig:
     they learn from every step); the step kept is the one their held-out folds together choose (a K-fold
     cross-validated NLL, fit.HeldOutStopper). Averaging K fits cuts
     the variance of a reward learned from a few demonstrations; a step costs about K times as much.
-    0 (default): K = 4 for small fits, fewer as tasks × states grow, 1 from 32,768 (fit.ensemble_size)."""
+    0 (default): K = 4 for small fits, fewer as tasks × states grow, 1 from 32,768 (`ensemble_size`)."""
 
     seed: int = 0
     """Seed of every random choice (initial weights, hold-out split): same seed, same result."""
@@ -140,3 +140,22 @@ class FitConfig:
             if isinstance(kwargs.get(name), list):
                 kwargs[name] = tuple(kwargs[name])
         return cls(**kwargs)
+
+
+ENSEMBLE_BUDGET = 2**15
+"""Task-states per member that the automatic ensemble may fill (``FitConfig.ensemble = 0``)."""
+
+MAX_AUTO_MEMBERS = 4
+"""The most members the automatic ensemble uses."""
+
+
+def ensemble_size(config: FitConfig, *, n_tasks: int, n_states: int) -> int:
+    """Members K: ``config.ensemble``, or with 0 as many as fit ENSEMBLE_BUDGET (1 … MAX_AUTO_MEMBERS).
+
+    A step costs about K times a member's; a fit of T tasks on S states already evaluates T·S task-states
+    per step, so K = ⌊2^15 / (T·S)⌋ keeps small fits (where a few demonstrations leave the most variance)
+    averaged over 4 members and leaves large ones (an 80,000-state velocity grid) single.
+    """
+    if config.ensemble:
+        return config.ensemble
+    return max(1, min(MAX_AUTO_MEMBERS, ENSEMBLE_BUDGET // (n_tasks * n_states)))

@@ -24,11 +24,12 @@ import torch
 import torch.nn.functional as F
 
 from metairl_engine.backups import QRows, backup, successors
-from metairl_engine.config import FitConfig
+from metairl_engine.config import FitConfig, ensemble_size
 from metairl_engine.demos import validate_trajectories
 from metairl_engine.errors import Cancelled, InvalidInput, Issue, check
 from metairl_engine.holdout import Steps, split_steps
 from metairl_engine.mdp import MDP
+from metairl_engine.memory import EVAL_CHUNK, TRAIN_CHUNK
 from metairl_engine.networks import StackedMLP, fourier_features
 from metairl_engine.results import FitResult, Progress, TaskData
 from metairl_engine.sharing import segment_sum, sharing_loss
@@ -37,12 +38,6 @@ __all__ = ["FitResult", "Progress", "TaskData", "fit"]
 
 ProgressCallback = Callable[[Progress], None]
 StopCheck = Callable[[], bool]
-
-EVAL_CHUNK = 16_384
-"""States per chunk when evaluating the final networks on every state (bounds memory at 80,000 states)."""
-
-TRAIN_CHUNK = 1_024
-"""Above this many states a training step runs the networks chunk by chunk (see `gradient_step`)."""
 
 CONVERGED_STEPS = 10
 """The loss has converged when its change stayed within ``tolerance`` this many steps in a row: Adam's loss
@@ -105,25 +100,6 @@ def _same_features(a: MDP, b: MDP) -> bool:
     if a.features is None or b.features is None:
         return a.features is None and b.features is None
     return a.features is b.features or bool(np.array_equal(a.features, b.features))
-
-
-ENSEMBLE_BUDGET = 2**15
-"""Task-states per member that the automatic ensemble may fill (``FitConfig.ensemble = 0``)."""
-
-MAX_AUTO_MEMBERS = 4
-"""The most members the automatic ensemble uses."""
-
-
-def ensemble_size(config: FitConfig, *, n_tasks: int, n_states: int) -> int:
-    """Members K: ``config.ensemble``, or with 0 as many as fit ENSEMBLE_BUDGET (1 … MAX_AUTO_MEMBERS).
-
-    A step costs about K times a member's; a fit of T tasks on S states already evaluates T·S task-states
-    per step, so K = ⌊2^15 / (T·S)⌋ keeps small fits (where a few demonstrations leave the most variance)
-    averaged over 4 members and leaves large ones (an 80,000-state velocity grid) single.
-    """
-    if config.ensemble:
-        return config.ensemble
-    return max(1, min(MAX_AUTO_MEMBERS, ENSEMBLE_BUDGET // (n_tasks * n_states)))
 
 
 class _Problem:

@@ -84,6 +84,13 @@ class Unprocessable(ApiError):
     status, type, title = 422, "validation", "Invalid input"
 
 
+class TooManyRequests(ApiError):
+    """A rate limit was reached (per API key, or failed authentications per address); `Retry-After` says when
+    to retry."""
+
+    status, type, title = 429, "rate-limited", "Too many requests"
+
+
 class DatabaseUnavailable(ApiError):
     """The database could not be reached or dropped the connection (e.g. it restarted): retry shortly."""
 

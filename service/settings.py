@@ -47,6 +47,25 @@ class Settings(BaseSettings):
     idempotency_ttl_s: int = 24 * 3600
     """How long an ``Idempotency-Key`` replays its first response."""
 
+    idempotency_lease_s: float = 60.0
+    """How long a claimed ``Idempotency-Key`` stays claimed without its request renewing it (every third of
+    this while it runs); a retry with the key after the lease lapsed (the API died, or the database dropped
+    before the response was recorded) runs the request again instead of answering 409."""
+
+    rate_limit_per_key: float = 200.0
+    """Requests a second one API key may make to `/v1`, sustained (0: no limit); over it, 429 with ``Retry-After``.
+    Counted in each API process: with N processes a key gets up to N times this."""
+
+    rate_limit_per_key_burst: int = 400
+    """Requests one API key may make at once above ``rate_limit_per_key`` (its bucket's size)."""
+
+    rate_limit_per_ip: float = 10.0
+    """Failed authentications (401) a second one client address may cause, sustained (0: no limit); while it is
+    over, every `/v1` request from the address gets 429 with ``Retry-After``, so a key guesser is slowed down."""
+
+    rate_limit_per_ip_burst: int = 20
+    """Failed authentications one client address may cause at once above ``rate_limit_per_ip``."""
+
     api_key_cache_s: float = 0.0
     """How long an API process trusts a key the database confirmed; a revoked key is refused within this (0: always ask)."""
 
@@ -65,6 +84,10 @@ class Settings(BaseSettings):
 
     worker_concurrency: int = 1
     """Jobs one worker process runs at once; torch threads per job = cores owned / this."""
+
+    worker_max_memory_mb: int | None = None
+    """Memory (MiB) a worker's jobs may use, shared by those it runs at once: a job whose fit is estimated to
+    need more fails at once. None: 80 % of the memory available when the job starts."""
 
     job_heartbeat_s: float = 1.0
     """How often a running job writes its heartbeat and progress and reads its cancel flag (≤ 1 s)."""

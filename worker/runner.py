@@ -26,6 +26,7 @@ from service.store.loaders import load_mdp, load_trajectories
 from service.store.models.demonstrators import Task
 from service.store.models.jobs import Job
 from worker.context import sessions
+from worker.memory import OverBudget, check_memory
 from worker.monitor import Monitor, progress_values
 
 log = logging.getLogger(__name__)
@@ -45,6 +46,7 @@ def run_attempt(job_id: str, attempt: int, monitor: Monitor) -> None:
                 job = session.get_one(Job, job_id)
                 task_ids = list(job.task_ids)
                 config = FitConfig.from_dict(job.config)
+                check_memory(session, job_id, task_ids, config, settings)
                 tasks = load_tasks(session, task_ids)
             torch.set_num_threads(
                 torch_threads(settings.worker_concurrency, size=tasks[0].mdp.n_states * len(tasks))
@@ -102,6 +104,8 @@ def explain_failure(exc: BaseException, *, task_ids: Sequence[str], settings: Se
             f"The job ran longer than the limit of {settings.job_time_limit_s} s; lower config.max_steps, "
             "fit fewer or smaller tasks, or ask the operator to raise METAIRL_JOB_TIME_LIMIT_S."
         )
+    if isinstance(exc, OverBudget):
+        return str(exc)
     if isinstance(exc, MemoryError):
         return (
             "The worker ran out of memory; use smaller config.hidden layers or fewer states, "

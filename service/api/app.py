@@ -15,6 +15,7 @@ from service.api.docs import install_docs
 from service.api.idempotency import Idempotency
 from service.api.limits import BodySizeLimit
 from service.api.openapi import install_openapi
+from service.api.ratelimit import RateLimit
 from service.api.routes import (
     comparisons,
     demonstrations,
@@ -92,6 +93,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_handlers(app)
     app.add_middleware(Idempotency, settings=settings)
     app.add_middleware(BodySizeLimit, settings=settings)
+    app.add_middleware(RateLimit, settings=settings)  # outermost: a refusal costs no body and no database
     for module in (
         mdps,
         demonstrators,

@@ -2,17 +2,25 @@
 first response and creates nothing; the same key with a different body is a 422; a key still running is a 409.
 
 The key is claimed (a row with no response yet) before the request runs, so two concurrent retries cannot
-both create; 5xx responses release the claim so the request can be retried.
+both create; 5xx responses release the claim so the request can be retried. A claim is a lease of
+``idempotency_lease_s`` that its request renews while it runs: if the request's process died, or the
+database dropped before its response was recorded, the lease lapses and the next retry with the same key
+and body takes the claim over and runs the request again (whatever the first run had committed stays;
+the alternative was a key answering 409 until its TTL ran out). Every write of a claim names its holder,
+so a holder that lost its claim records and releases nothing.
 """
 
 from __future__ import annotations
 
+import asyncio
 import hashlib
 import json
+import logging
+import secrets
 from datetime import timedelta
 from typing import Any
 
-from sqlalchemy import delete, select
+from sqlalchemy import delete, or_, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, sessionmaker
 from starlette.concurrency import run_in_threadpool
@@ -23,6 +31,8 @@ from service.problems import ApiError, Conflict, Unprocessable, problem_response
 from service.settings import Settings
 from service.store.models.base import utcnow
 from service.store.models.idempotency import IdempotentRequest
+
+log = logging.getLogger(__name__)
 
 HEADER = b"idempotency-key"
 MAX_KEY_LENGTH = 255
@@ -65,6 +75,7 @@ class Idempotency:
     def __init__(self, app: ASGIApp, *, settings: Settings):
         self.app = app
         self.ttl = timedelta(seconds=settings.idempotency_ttl_s)
+        self.lease = timedelta(seconds=settings.idempotency_lease_s)
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         """Claim the key, run the request and store its response, or answer from the stored one."""
@@ -87,7 +98,8 @@ class Idempotency:
             return
         body = await _read_body(receive)
         fp = fingerprint(scope, body)
-        outcome = await run_in_threadpool(self._claim, makers, bearer, key, fp)
+        claim = secrets.token_hex(16)
+        outcome = await run_in_threadpool(self._claim, makers, bearer, key, fp, claim)
         if isinstance(outcome, ApiError):
             await problem_response(outcome)(scope, receive, send)
             return
@@ -113,27 +125,34 @@ class Idempotency:
                 captured["body"] += message.get("body", b"")
             await send(message)
 
+        renewing = asyncio.create_task(self._renew_while_running(makers, lab_id, key, claim))
         try:
             await self.app(scope, _replaying_receive(body, receive), capturing_send)
         finally:
-            await run_in_threadpool(self._finish, makers, lab_id, key, captured)
+            renewing.cancel()
+            await run_in_threadpool(self._finish, makers, lab_id, key, claim, captured)
 
     def _claim(
-        self, makers: sessionmaker[Session], bearer: str, key: str, fp: str
+        self, makers: sessionmaker[Session], bearer: str, key: str, fp: str, claim: str
     ) -> str | IdempotentRequest | ApiError | None:
-        """Claim `key` for this request: returns the lab id (go ahead), a finished row (replay), an error,
-        or None when the API key is not valid."""
+        """Claim `key` for this request as `claim`: returns the lab id (go ahead), a finished row (replay), an
+        error, or None when the API key is not valid. A running claim whose lease lapsed is taken over."""
         with makers() as session:
             lab = lab_for_key(session, bearer)
             if lab is None:
                 return None
             lab_id = lab.id
+            now = utcnow()
             session.execute(
                 delete(IdempotentRequest).where(
-                    IdempotentRequest.lab_id == lab_id, IdempotentRequest.created_at < utcnow() - self.ttl
+                    IdempotentRequest.lab_id == lab_id, IdempotentRequest.created_at < now - self.ttl
                 )
             )
-            session.add(IdempotentRequest(lab_id=lab_id, key=key, fingerprint=fp))
+            session.add(
+                IdempotentRequest(
+                    lab_id=lab_id, key=key, fingerprint=fp, claim=claim, leased_until=now + self.lease
+                )
+            )
             try:
                 session.commit()
                 return lab_id
@@ -158,15 +177,74 @@ class Idempotency:
                 ],
             )
         if row.status is None:
+            if self._take_over(makers, row, claim):
+                return lab_id
             return Conflict("A request with this Idempotency-Key is still being processed; retry shortly.")
         return row
 
+    def _take_over(self, makers: sessionmaker[Session], row: IdempotentRequest, claim: str) -> bool:
+        """Make `claim` the holder of the running `row` if its lease has lapsed (one of racing retries wins)."""
+        now = utcnow()
+        if row.leased_until is not None and row.leased_until >= now:
+            return False
+        with makers() as session:
+            taken = session.execute(
+                update(IdempotentRequest)
+                .where(
+                    IdempotentRequest.lab_id == row.lab_id,
+                    IdempotentRequest.key == row.key,
+                    IdempotentRequest.status.is_(None),
+                    IdempotentRequest.claim.is_(None)
+                    if row.claim is None
+                    else IdempotentRequest.claim == row.claim,
+                    or_(IdempotentRequest.leased_until.is_(None), IdempotentRequest.leased_until < now),
+                )
+                .values(claim=claim, leased_until=now + self.lease)
+                .execution_options(synchronize_session=False)
+            ).rowcount  # type: ignore[attr-defined]
+            session.commit()
+        if taken:
+            log.warning(
+                "Idempotency-Key %r of lab %s: lease lapsed; taken over by a retry", row.key, row.lab_id
+            )
+        return bool(taken)
+
+    async def _renew_while_running(
+        self, makers: sessionmaker[Session], lab_id: str, key: str, claim: str
+    ) -> None:
+        """Extend the claim's lease every third of it until cancelled (a failed renewal is retried next time)."""
+        while True:
+            await asyncio.sleep(self.lease.total_seconds() / 3)
+            try:
+                await run_in_threadpool(self.renew, makers, lab_id, key, claim)
+            except Exception:
+                log.exception("could not renew the lease of Idempotency-Key %r of lab %s", key, lab_id)
+
+    def renew(self, makers: sessionmaker[Session], lab_id: str, key: str, claim: str) -> bool:
+        """Extend the lease of `claim` on `key` by ``idempotency_lease_s`` from now; False if it is no longer held."""
+        with makers() as session:
+            renewed = session.execute(
+                update(IdempotentRequest)
+                .where(
+                    IdempotentRequest.lab_id == lab_id,
+                    IdempotentRequest.key == key,
+                    IdempotentRequest.claim == claim,
+                    IdempotentRequest.status.is_(None),
+                )
+                .values(leased_until=utcnow() + self.lease)
+                .execution_options(synchronize_session=False)
+            ).rowcount  # type: ignore[attr-defined]
+            session.commit()
+        return bool(renewed)
+
     @staticmethod
-    def _finish(makers: sessionmaker[Session], lab_id: str, key: str, captured: dict[str, Any]) -> None:
-        """Store the response for replay, or release the claim after a server error."""
+    def _finish(
+        makers: sessionmaker[Session], lab_id: str, key: str, claim: str, captured: dict[str, Any]
+    ) -> None:
+        """Store the response for replay, or release the claim after a server error, if `claim` still holds it."""
         with makers() as session:
             row = session.get(IdempotentRequest, (lab_id, key))
-            if row is None:
+            if row is None or row.claim != claim or row.status is not None:
                 return
             if captured["status"] >= 500:
                 session.delete(row)
@@ -174,6 +252,8 @@ class Idempotency:
                 row.status = captured["status"]
                 row.headers = captured["headers"]
                 row.body = captured["body"]
+                row.claim = None
+                row.leased_until = None
             session.commit()
 
 

@@ -37,6 +37,11 @@ PROBLEM_RESPONSES: dict[int | str, dict[str, Any]] = {
             }
         },
     },
+    429: {
+        "description": "Too many requests with this API key, or too many failed authentications from this "
+        "address; `Retry-After` gives the seconds to wait (problem+json).",
+        "headers": {"Retry-After": {"description": "Seconds to wait.", "schema": {"type": "integer"}}},
+    },
 }
 """Error responses documented on every `/v1` route."""
 

@@ -5,14 +5,61 @@ Used by the worker; numpy only (rows were validated at upload, so nothing is re-
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
+
 import numpy as np
-from sqlalchemy import select
+from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from metairl_engine import MDP, Layout, SparseTransitions, Trajectory
 from service.store.blobs import get_array
-from service.store.models.demonstrators import Demonstration, TrueReward
+from service.store.models.blobs import Blob
+from service.store.models.demonstrators import Demonstration, Task, TrueReward
 from service.store.models.mdps import Mdp
+
+
+@dataclass(frozen=True)
+class InputSizes:
+    """The sizes of a fit's inputs that its memory depends on (`metairl_engine.memory.fit_memory`'s arguments)."""
+
+    n_tasks: int
+    n_states: int
+    n_actions: int
+    n_features: int | None
+    n_steps: int
+    n_mdps: int
+    successors: float
+
+
+def input_sizes(session: Session, task_ids: Sequence[str]) -> InputSizes:
+    """The sizes of these tasks' inputs from row metadata alone, so a worker can judge a job before loading it.
+
+    The tasks share one state space (checked at submission); ``successors`` is the most next states per
+    (state, action) of any of their MDPs (1 when all are deterministic).
+    """
+    mdp_ids = session.execute(select(Task.mdp_id).where(Task.id.in_(task_ids)).distinct()).scalars().all()
+    mdps = session.execute(select(Mdp).where(Mdp.id.in_(mdp_ids))).scalars().all()
+    first = mdps[0]
+    successors = 1.0
+    for mdp in mdps:
+        if "p" in mdp.array_blobs:
+            nonzeros = session.execute(
+                select(Blob.shape).where(Blob.id == mdp.array_blobs["p"])
+            ).scalar_one()[0]
+            successors = max(successors, nonzeros / (mdp.n_states * mdp.n_actions))
+    n_steps = session.execute(
+        select(func.coalesce(func.sum(Demonstration.n_steps), 0)).where(Demonstration.task_id.in_(task_ids))
+    ).scalar_one()
+    return InputSizes(
+        n_tasks=len(task_ids),
+        n_states=first.n_states,
+        n_actions=first.n_actions,
+        n_features=first.n_features,
+        n_steps=int(n_steps),
+        n_mdps=len(mdps),
+        successors=successors,
+    )
 
 
 def load_mdp(session: Session, mdp_id: str) -> MDP:

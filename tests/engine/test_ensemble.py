@@ -7,7 +7,8 @@ import numpy as np
 import torch
 
 from metairl_engine import FitConfig, Trajectory
-from metairl_engine.fit import _Problem, calibrated_nll, ensemble_size, fit, gradient_step
+from metairl_engine.config import ensemble_size
+from metairl_engine.fit import _Problem, calibrated_nll, fit, gradient_step
 from metairl_engine.holdout import split_steps
 from metairl_engine.networks import StackedMLP, fourier_features
 from tests.engine.test_fit import terrain_tasks

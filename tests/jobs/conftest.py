@@ -61,14 +61,14 @@ class Workers:
     logs: Path
     running: list[subprocess.Popen[bytes]] = field(default_factory=list)
 
-    def start(self) -> subprocess.Popen[bytes]:
-        """Start ``metairl worker`` and wait until Celery reports it ready."""
+    def start(self, **overrides: object) -> subprocess.Popen[bytes]:
+        """Start ``metairl worker`` (with these settings changed) and wait until Celery reports it ready."""
         log = self.logs / f"worker-{len(self.running)}-{secrets.token_hex(3)}.log"
         with open(log, "wb") as out:
             process = subprocess.Popen(
                 [sys.executable, "-m", "metairl_cli.main", "worker", "--concurrency", "1"],
                 cwd=REPO,
-                env=settings_environment(self.settings),
+                env=settings_environment(self.settings.model_copy(update=overrides)),
                 stdout=out,
                 stderr=subprocess.STDOUT,
                 start_new_session=True,

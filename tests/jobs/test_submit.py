@@ -36,6 +36,7 @@ def pointers(response: Any) -> list[str]:
         ({"hidden": [8, "x"]}, "/config/hidden"),
         ({"sharing": "cosine"}, "/config/sharing"),
         ({"holdout_fraction": 1.0}, "/config/holdout_fraction"),
+        ({"hidden": [100_000, 100_000]}, "/config/hidden/0"),  # over METAIRL_MAX_HIDDEN_UNITS' default
     ],
 )
 def test_bad_config_is_422_naming_the_field_and_creates_no_job(

@@ -1,14 +1,21 @@
-"""`Idempotency-Key`: a retried POST replays the first response and creates nothing; a changed body is a 422."""
+"""`Idempotency-Key`: a retried POST replays the first response and creates nothing; a changed body is a 422;
+a claim whose request never recorded its response lapses after its lease and is taken over by a retry."""
 
 from __future__ import annotations
 
 import secrets
+from datetime import timedelta
 
+import pytest
 from fastapi.testclient import TestClient
+from sqlalchemy import select, update
 
 from metairl_cli.keys import create_key
 from service.api.app import create_app
+from service.api.idempotency import Idempotency
 from service.settings import Settings
+from service.store.models.base import utcnow
+from service.store.models.idempotency import IdempotentRequest
 from tests.service.helpers import CORRIDOR_NEXT_STATE, make_task
 
 
@@ -91,3 +98,83 @@ def test_a_key_expires_after_the_ttl(settings: Settings) -> None:
     app.state.engine.dispose()
     assert first.status_code == again.status_code == 201
     assert first.json()["id"] != again.json()["id"]
+
+
+def unrecorded_claim(
+    client: TestClient, auth: dict[str, str], monkeypatch: pytest.MonkeyPatch
+) -> dict[str, str]:
+    """POST with a key whose response is sent (201) but never recorded, as when the database drops in between;
+    returns the headers to retry with."""
+    headers = auth | {"Idempotency-Key": f"dropped-{secrets.token_hex(4)}"}
+    with monkeypatch.context() as patched:
+        patched.setattr(Idempotency, "_finish", staticmethod(lambda *args: None))
+        assert client.post("/v1/demonstrators", json={"name": "p"}, headers=headers).status_code == 201
+    return headers
+
+
+def lapse_leases(client: TestClient) -> None:
+    """Move every running claim's lease into the past, as if ``idempotency_lease_s`` had passed."""
+    with client.app.state.sessionmaker() as session:  # type: ignore[attr-defined]
+        session.execute(
+            update(IdempotentRequest)
+            .where(IdempotentRequest.status.is_(None))
+            .values(leased_until=utcnow() - timedelta(seconds=1))
+        )
+        session.commit()
+
+
+def test_a_claim_within_its_lease_answers_409(
+    client: TestClient, auth: dict[str, str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    headers = unrecorded_claim(client, auth, monkeypatch)
+    retry = client.post("/v1/demonstrators", json={"name": "p"}, headers=headers)
+    assert retry.status_code == 409 and "still being processed" in retry.json()["detail"]
+    assert count_demonstrators(client, auth) == 1
+
+
+def test_a_claim_whose_lease_lapsed_is_taken_over_by_the_retry(
+    client: TestClient, auth: dict[str, str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    headers = unrecorded_claim(client, auth, monkeypatch)
+    lapse_leases(client)
+    retry = client.post("/v1/demonstrators", json={"name": "p"}, headers=headers)
+    assert retry.status_code == 201 and "idempotent-replayed" not in retry.headers
+    again = client.post("/v1/demonstrators", json={"name": "p"}, headers=headers)
+    assert again.status_code == 201 and again.headers["idempotent-replayed"] == "true"
+    assert again.json() == retry.json()
+    assert (
+        count_demonstrators(client, auth) == 2
+    )  # the first run's demonstrator was committed before the drop
+    changed = client.post("/v1/demonstrators", json={"name": "q"}, headers=headers)
+    assert changed.status_code == 422  # a lapsed claim is taken over only by the same request
+
+
+def test_only_the_request_holding_a_claim_renews_records_or_releases_it(
+    client: TestClient, auth: dict[str, str], settings: Settings, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    headers = unrecorded_claim(client, auth, monkeypatch)
+    lapse_leases(client)
+    makers = client.app.state.sessionmaker  # type: ignore[attr-defined]
+
+    def claim_row() -> IdempotentRequest:
+        """The key's row as stored now."""
+        with makers() as session:
+            return session.execute(
+                select(IdempotentRequest).where(IdempotentRequest.key == headers["Idempotency-Key"])
+            ).scalar_one()
+
+    row = claim_row()
+    assert row.status is None and row.claim is not None
+    middleware = Idempotency(client.app, settings=settings)
+    assert not middleware.renew(makers, row.lab_id, row.key, "another-request")
+    assert claim_row().leased_until == row.leased_until
+    for status in (201, 500):  # neither a response nor a release from a request that lost the claim
+        Idempotency._finish(
+            makers, row.lab_id, row.key, "another-request", {"status": status, "headers": [], "body": b"{}"}
+        )
+        assert (claim_row().status, claim_row().claim) == (None, row.claim)
+    assert middleware.renew(makers, row.lab_id, row.key, row.claim)
+    renewed = claim_row().leased_until
+    assert renewed is not None and renewed > utcnow()
+    retry = client.post("/v1/demonstrators", json={"name": "p"}, headers=headers)
+    assert retry.status_code == 409  # renewed: its request is alive

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from datetime import datetime
+
 from sqlalchemy import JSON, ForeignKey, Integer, LargeBinary, String
 from sqlalchemy.orm import Mapped, mapped_column
 
-from service.store.models.base import ID_LENGTH, Base, CreatedAtMixin
+from service.store.models.base import ID_LENGTH, Base, CreatedAtMixin, UTCDateTime
 
 
 class IdempotentRequest(CreatedAtMixin, Base):
@@ -21,3 +23,8 @@ class IdempotentRequest(CreatedAtMixin, Base):
     status: Mapped[int | None] = mapped_column(Integer)
     headers: Mapped[list[list[str]] | None] = mapped_column(JSON)
     body: Mapped[bytes | None] = mapped_column(LargeBinary)
+    claim: Mapped[str | None] = mapped_column(String(32))
+    """Random id of the request holding a running claim: only that request renews, records or releases it."""
+    leased_until: Mapped[datetime | None] = mapped_column(UTCDateTime())
+    """While running, when the claim lapses unless its request renews it (null: lapsed); a retry with the
+    same key and body then takes the claim over."""

@@ -1,0 +1,192 @@
+"""How much memory a fit needs, estimated from the problem's sizes before any of it is allocated.
+
+Pure arithmetic (no numpy, no torch), so a worker can refuse a job that cannot fit in its memory before
+loading its inputs, instead of being killed by the kernel part-way and re-running the job to the same end.
+The chunk sizes that bound the fit's per-state tensors live here too, since the estimate depends on them.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+from metairl_engine.config import FitConfig, ensemble_size
+
+EVAL_CHUNK = 16_384
+"""States per chunk when evaluating the final networks on every state (bounds memory at 80,000 states)."""
+
+TRAIN_CHUNK = 1_024
+"""Above this many states a training step runs the networks chunk by chunk (see `fit.gradient_step`)."""
+
+FLOAT = 4
+"""Bytes of a float32 (parameters, activations, Q values)."""
+
+INDEX = 8
+"""Bytes of an int64 (index tensors and arrays)."""
+
+RUNTIME = 320 * 1024 * 1024
+"""torch's and scipy's libraries and buffers in the process that runs the fit (measured: 326 MB for a
+25-state fit, whose own tensors are a few kB)."""
+
+ALLOCATOR_SLACK = 1.2
+"""Peak resident memory per byte of live tensors: freed tensors the allocator keeps and cannot reuse for
+later, differently sized ones. With it the estimate came to 0.87–1.14 times the measured peak of nine
+meta-IRL fits of 2,000 to 90,000 states (benchmarks/memory.py)."""
+
+PARAMETER_COPIES = 5
+"""Copies of each network parameter: the weight, its gradient, Adam's two moments and the kept copy."""
+
+TEMPERATURES = 17
+"""Temperatures at which the held-out NLL is scored (`fit.TEMPERATURES`)."""
+
+
+@dataclass(frozen=True)
+class FitMemory:
+    """The estimated peak memory of a fit, in bytes, by what it is spent on (see `fit_memory`)."""
+
+    runtime: int
+    """torch's and scipy's own memory (`RUNTIME`)."""
+    inputs: int
+    """The loaded MDPs and trajectories, and the features as the networks read them."""
+    networks: int
+    """The networks' parameters, gradients, Adam's moments and the kept copy."""
+    rows: int
+    """The index tensors of the rows of Q (demonstrated steps and sharing rows), held throughout."""
+    training: int
+    """One training step at its peak (maxent: one task's solve)."""
+    evaluation: int
+    """The final evaluation on every state, and the results (maxent: the results)."""
+
+    @property
+    def total(self) -> int:
+        """The peak: the runtime, and the tensors held throughout plus the larger of a training step and the
+        final evaluation, with the allocator's slack."""
+        tensors = self.inputs + self.networks + self.rows + max(self.training, self.evaluation)
+        return self.runtime + int(ALLOCATOR_SLACK * tensors)
+
+    def advice(self) -> str:
+        """What to change in the job to need less, for the part that needs the most."""
+        parts = {
+            "inputs": self.inputs,
+            "networks": self.networks,
+            "rows": self.rows + max(self.training, self.evaluation),
+        }
+        largest = max(parts, key=lambda name: parts[name])
+        if largest == "networks":
+            return (
+                "most of it holds the networks and their optimiser state: use smaller config.hidden layers, "
+                "a smaller config.ensemble or fewer tasks"
+            )
+        if largest == "inputs":
+            return (
+                "most of it holds the MDPs' features and their encoding: use fewer states or feature columns, "
+                "or a smaller config.fourier_octaves"
+            )
+        return (
+            "most of it holds per-state values of every task and ensemble member: use fewer states or tasks, "
+            'a smaller config.ensemble, or config.sharing_states "visited"'
+        )
+
+
+def fit_memory(
+    config: FitConfig,
+    *,
+    n_tasks: int,
+    n_states: int,
+    n_actions: int,
+    n_features: int | None,
+    n_steps: int,
+    n_mdps: int,
+    successors: float = 1.0,
+) -> FitMemory:
+    """Estimated peak bytes of `fit` on ``n_tasks`` tasks sharing one state space, and what they are spent on.
+
+    ``n_features`` is the MDPs' feature columns (None: tabular), ``n_steps`` the demonstrated steps of all
+    tasks, ``n_mdps`` the distinct MDPs loaded, ``successors`` the mean next states per (state, action)
+    (1: deterministic). Counted, for the meta-IRL method: the loaded inputs (transitions, features and
+    their Fourier encoding, trajectories); the VR and baseline networks' parameters with their gradients,
+    Adam's moments and the kept copy; the index tensors of the training, held-out and sharing rows (one
+    per network and state with ``sharing_states="all"``); then the larger of one training step (the
+    activations of one chunk of states forward and backward, Q and its gradient on every row, Adam's
+    temporaries) and the final evaluation on every state (Q, values and policies of all networks, and the
+    results). With ``method="maxent"``: the inputs, one task's value iteration and the results. Each term
+    counts the tensors it names at their largest (e.g. every state as needed by the networks); small
+    tensors and Python objects fall under `RUNTIME`.
+    """
+    s, a, t = n_states, n_actions, n_tasks
+    deterministic = successors == 1.0
+    # A next-state table (int32), or the stored (s, a, next, p) triples and their CSR matrix.
+    transitions = n_mdps * (s * a * 4 if deterministic else int(s * a * successors * (16 + 12)))
+    inputs = transitions + n_mdps * s * (n_features or 0) * FLOAT + n_steps * 2 * INDEX * 3
+    if config.method == "maxent":
+        nnz = int(s * a * successors)
+        solve = nnz * 48 + s * a * 8 * 6 + s * 8 * 40  # CSR P and Pᵀ, P_π; Q, policy, temporaries; L-BFGS
+        results = t * s * a * 12 + 3 * t * s * FLOAT  # float64 policies per task, then their float32 copy
+        return FitMemory(RUNTIME, inputs, 0, 0, solve, results)
+
+    k = ensemble_size(config, n_tasks=t, n_states=s)
+    nets = t * k
+    tabular = n_features is None
+    octave_columns = 1 + 2 * config.fourier_octaves
+    width = s if tabular else (n_features or 0) * octave_columns
+    base_width = (
+        width
+        if tabular or config.baseline_features is None
+        else len(config.baseline_features) * octave_columns
+    )
+    if not tabular:
+        # Encoded features and the copies the networks read (VR, baseline), plus the encoding's float64 waves.
+        inputs += 2 * s * width * FLOAT + 2 * s * base_width * FLOAT + s * width * 8 * 3
+
+    def parameters(members: int, n_inputs: int) -> int:
+        """Parameters of ``members`` stacked MLPs ``n_inputs → hidden… → 1``."""
+        widths = [n_inputs, *config.hidden, 1]
+        return members * sum(i * o + o for i, o in itertools.pairwise(widths))
+
+    sharing = config.sharing != "none"
+    n_parameters = parameters(nets, width) + (parameters(k, base_width) if sharing else 0)
+    networks = PARAMETER_COPIES * n_parameters * FLOAT
+
+    # Rows of Q: K copies of every demonstrated step (train or held out) and the sharing rows.
+    step_rows = k * n_steps
+    if not sharing:
+        share_rows = 0
+    elif config.sharing_states == "all":
+        share_rows = nets * s
+    else:
+        share_rows = k * min(t * s, n_steps)
+    # Bytes per (row, action) of a Q index (a gather index, or COO entries), and of the temporaries
+    # while one is built.
+    entry = INDEX if deterministic else int(successors * 20)
+    build = 12 if deterministic else int(successors * 60)
+    rows = (step_rows + share_rows) * (a * entry + 6 * INDEX)
+
+    first = 0 if tabular else width  # a features input is broadcast to every network
+    layers = [first, *config.hidden]
+
+    def activations(members: int, n_inputs: int) -> int:
+        """Saved activations and their gradients of ``members`` networks on one chunk of states."""
+        return members * min(s, TRAIN_CHUNK) * (n_inputs + 2 * sum(config.hidden)) * FLOAT
+
+    largest_weight = max(i * o for i, o in itertools.pairwise([width, *config.hidden, 1]))
+    held = int(step_rows * config.holdout_fraction)
+    step = (
+        activations(nets, first)
+        + (activations(k, 0 if tabular else base_width) if sharing else 0)
+        + 2 * (nets + k) * s * FLOAT  # f and r_b with their gradients
+        # Q, its log-softmax or max and its gradient; the backward of Q's gather sorts a copy of its index.
+        + (step_rows + share_rows) * a * (3 * FLOAT + 2 * entry)
+        + share_rows * 10 * FLOAT  # V, r, r − r_b, the sharing loss's terms and their gradients
+        + held * (TEMPERATURES + 2 * a) * FLOAT  # the calibrated held-out NLL
+    )
+    adam = 2 * nets * largest_weight * FLOAT  # Adam's temporaries of the largest weight, after the backward
+    training = max(step, adam)
+    all_rows = nets * s
+    forward = nets * min(s, EVAL_CHUNK) * max(i + o for i, o in itertools.pairwise(layers)) * FLOAT
+    q_all = all_rows * a * (entry + max(build, 3 * FLOAT)) + all_rows * 2 * INDEX  # Q, b·Q, softmax
+    evaluation = (
+        max(forward, q_all)  # first the networks, one chunk and two layers at a time; then Q on every state
+        + all_rows * 4 * FLOAT  # f, V, r and their means
+        + t * s * a * 2 * FLOAT  # the mean policies and their float32 copy in the result
+    )
+    return FitMemory(RUNTIME, inputs, networks, rows, training, evaluation)

@@ -1,0 +1,59 @@
+"""The memory estimate of a fit: its terms follow the fit's own tensors and grow with what they hold."""
+
+from __future__ import annotations
+
+import torch
+
+from metairl_engine.config import FitConfig, ensemble_size
+from metairl_engine.memory import FLOAT, PARAMETER_COPIES, fit_memory
+from metairl_engine.networks import StackedMLP
+
+
+def estimate(config: FitConfig, **sizes: int) -> int:
+    """The estimated peak of a deterministic fit of these sizes (defaults: 2 tasks, 400 states, 4 actions)."""
+    shape = {"n_tasks": 2, "n_states": 400, "n_actions": 4, "n_steps": 200, "n_mdps": 1} | sizes
+    return fit_memory(config, n_features=None, **shape).total
+
+
+def test_network_memory_is_every_parameter_of_the_fit_networks_five_times() -> None:
+    config = FitConfig(hidden=(64, 32))
+    k = ensemble_size(config, n_tasks=3, n_states=500)
+    generator = torch.Generator().manual_seed(0)
+    vr = StackedMLP(n_members=3 * k, n_inputs=500, hidden=config.hidden, tabular=True, generator=generator)
+    base = StackedMLP(n_members=k, n_inputs=500, hidden=config.hidden, tabular=True, generator=generator)
+    n_parameters = sum(p.numel() for net in (vr, base) for p in net.parameters())
+    memory = fit_memory(config, n_tasks=3, n_states=500, n_actions=4, n_features=None, n_steps=300, n_mdps=1)
+    assert memory.networks == PARAMETER_COPIES * n_parameters * FLOAT
+
+
+def test_estimate_grows_with_hidden_units_states_tasks_and_members() -> None:
+    small = estimate(FitConfig(hidden=(32,)))
+    assert estimate(FitConfig(hidden=(1024, 1024))) > small
+    assert estimate(FitConfig(hidden=(32,)), n_states=40_000) > small
+    assert estimate(FitConfig(hidden=(32,)), n_tasks=8) > small
+    assert estimate(FitConfig(hidden=(32,), ensemble=8)) > estimate(FitConfig(hidden=(32,), ensemble=1))
+
+
+def test_sharing_on_all_states_holds_rows_per_network_and_state() -> None:
+    sizes = {"n_tasks": 4, "n_states": 90_000, "n_actions": 8, "n_features": 2, "n_steps": 2_000, "n_mdps": 1}
+    every_state = fit_memory(FitConfig(ensemble=1), **sizes)
+    visited = fit_memory(FitConfig(ensemble=1, sharing_states="visited"), **sizes)
+    assert every_state.rows > 10 * visited.rows
+    assert every_state.rows >= 4 * 90_000 * 8 * 8  # a gather index per network, state and action
+
+
+def test_advice_names_the_config_that_shrinks_the_largest_part() -> None:
+    wide = fit_memory(
+        FitConfig(hidden=(4096, 4096)),
+        n_tasks=2,
+        n_states=100,
+        n_actions=4,
+        n_features=2,
+        n_steps=50,
+        n_mdps=1,
+    )
+    assert "config.hidden" in wide.advice()
+    many = fit_memory(
+        FitConfig(hidden=(8,)), n_tasks=16, n_states=80_000, n_actions=8, n_features=2, n_steps=50, n_mdps=1
+    )
+    assert "fewer states or tasks" in many.advice()
