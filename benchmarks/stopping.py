@@ -4,7 +4,8 @@ Runs the fit's own loop (`metairl_engine.fit` internals, one member, default con
 number of steps on problems with a known reward, and every ``--every`` steps scores the live networks'
 task rewards against the truth (Pearson, goal excluded). Reports, per problem: the step of the lowest
 held-out NLL, the steps the stopping rules keep (the one-standard-error rule on the mean, and the same
-rule on the paired differences with the best step), and the accuracy at each, beside the best accuracy
+rule on the paired differences with the best step, the same on the calibrated NLL, and where the engine's
+own rule stops and what it keeps), and the accuracy at each, beside the best accuracy
 any step reached. Problems: terrain worlds of both generators, and terrain on the velocity grid (the
 motion model: state = (cell, direction), true reward = −cost of the cell + goal bonus). Usage::
 
@@ -30,7 +31,7 @@ from accuracy import world_and_tasks  # noqa: E402
 from frozen_terrain import frozen_world_and_tasks  # noqa: E402
 
 from metairl_engine import FitConfig  # noqa: E402
-from metairl_engine.fit import _evaluate, _Problem, gradient_step  # noqa: E402
+from metairl_engine.fit import HeldOutStopper, _evaluate, _Problem, gradient_step  # noqa: E402
 from metairl_engine.grids import grid_mdp  # noqa: E402
 from metairl_engine.metrics import pearson  # noqa: E402
 from metairl_engine.networks import StackedMLP  # noqa: E402
@@ -120,6 +121,16 @@ def kept_step(held: list[np.ndarray], *, paired: bool) -> int:
     return kept
 
 
+def engine_rule(calibrated: list[np.ndarray], *, patience: int) -> tuple[int, int]:
+    """(step the fit stops at, step it keeps) under the engine's own rule (fit.HeldOutStopper)."""
+    stopper = HeldOutStopper(patience=patience)
+    for step, rows in enumerate(calibrated, start=1):
+        stopper.update(step, torch.from_numpy(rows))
+        if stopper.should_stop(step):
+            return step, stopper.kept_step
+    return len(calibrated), stopper.kept_step
+
+
 def nearest(accuracy: dict[int, float], step: int) -> float:
     """Accuracy at the recorded step nearest to ``step``."""
     return accuracy[min(accuracy, key=lambda s: abs(s - step))]
@@ -132,14 +143,19 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=600)
     parser.add_argument("--every", type=int, default=10)
     parser.add_argument("--generators", nargs="*", default=list(GENERATORS), choices=list(GENERATORS))
+    parser.add_argument(
+        "--patience", type=int, nargs="*", default=[FitConfig().patience], help="the engine's rule, per value"
+    )
     args = parser.parse_args()
     torch.set_num_threads(1)
     config = replace(FitConfig(), ensemble=1)
     print(
         "| problem | min held-out NLL: step (acc) | one-SE rule: step (acc) | paired rule: step (acc) "
-        "| calibrated one-SE: step (acc) | best accuracy: step (acc) | last step acc |"
+        "| calibrated one-SE: step (acc) | "
+        + " | ".join(f"engine's rule, patience {p}: stop, kept (acc)" for p in args.patience)
+        + " | best accuracy: step (acc) | last step acc |"
     )
-    print("| --- | --- | --- | --- | --- | --- | --- |")
+    print("| --- " * (7 + len(args.patience)) + "|")
     for g in args.generators:
         for w in range(args.worlds):
             world, sims = GENERATORS[g](w)
@@ -148,12 +164,14 @@ def main() -> None:
             best_nll = int(nll.argmin()) + 1
             one_se, paired = kept_step(t.held, paired=False), kept_step(t.held, paired=True)
             calibrated = kept_step(t.calibrated, paired=False)
+            rules = [engine_rule(t.calibrated, patience=p) for p in args.patience]
             best_acc = max(t.accuracy, key=lambda s: t.accuracy[s])
             print(
                 f"| {g} world {w} | {best_nll} ({nearest(t.accuracy, best_nll):.3f}) "
                 f"| {one_se} ({nearest(t.accuracy, one_se):.3f}) | {paired} ({nearest(t.accuracy, paired):.3f}) "
                 f"| {calibrated} ({nearest(t.accuracy, calibrated):.3f}) "
-                f"| {best_acc} ({t.accuracy[best_acc]:.3f}) | {t.accuracy[max(t.accuracy)]:.3f} |",
+                + "".join(f"| {stop}, {kept} ({nearest(t.accuracy, kept):.3f}) " for stop, kept in rules)
+                + f"| {best_acc} ({t.accuracy[best_acc]:.3f}) | {t.accuracy[max(t.accuracy)]:.3f} |",
                 flush=True,
             )
 

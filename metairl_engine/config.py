@@ -74,7 +74,7 @@ class FitConfig:
     NLL is within one standard error of the best (see fit.HeldOutStopper). 0 disables the hold-out; the
     fit then runs on all steps to ``max_steps`` or ``tolerance``."""
 
-    patience: int = 100
+    patience: int = 200
     """Stop once the held-out NLL has set no new best for this many steps (only with a hold-out; 0: never)."""
 
     ensemble: int = 0
