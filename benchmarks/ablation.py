@@ -27,7 +27,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
 
-from accuracy import run_one, world_and_tasks  # noqa: E402
+from accuracy import REVISION, run_one, world_and_tasks  # noqa: E402
 from frozen_terrain import frozen_world_and_tasks  # noqa: E402
 
 from metairl_engine import FitConfig  # noqa: E402
@@ -75,13 +75,6 @@ VARIANTS: dict[str, dict[str, Any]] = {
 def config_of(variant: str) -> FitConfig:
     """The FitConfig a variant names (today's defaults plus its overrides)."""
     return replace(FitConfig(), **VARIANTS[variant])
-
-
-REVISION = "rev4"
-"""The engine's behaviour beyond its config: bump it (and relabel the cache's rows) when the fit changes.
-rev1: stopping on the plain held-out NLL; rev2: on the calibrated held-out NLL (fit.calibrated_nll);
-rev3: and stopping once it has set no new best for ``patience`` steps (fit.HeldOutStopper); rev4: one
-stopper for all ensemble members, on their held-out folds together (a K-fold cross-validated NLL)."""
 
 
 def key_of(variant: str) -> str:

@@ -33,6 +33,14 @@ from metairl_engine.results import TaskData  # noqa: E402
 from metairl_engine.terrain import SimTask, World, make_tasks, make_world  # noqa: E402
 
 SHARINGS = ("none", "l2", "huber", "std", "entropy")
+
+REVISION = "rev4"
+"""The engine's behaviour beyond its config, stored with every cached row (here and in ablation.py) so no
+stale row is reused: bump it, and relabel ablation's rows, when the fit changes. Rows without one ran
+before issue 13. rev1: stopping on the plain held-out NLL; rev2: on the calibrated held-out NLL
+(fit.calibrated_nll); rev3: and stopping once it has set no new best for ``patience`` steps
+(fit.HeldOutStopper); rev4: one stopper for all ensemble members, on their held-out folds together (a
+K-fold cross-validated NLL)."""
 HERE = Path(__file__).resolve().parent
 
 
@@ -134,7 +142,7 @@ def main() -> None:
     torch.set_num_threads(1)  # 256-state problems: one thread is fastest, and leaves a core to others
     config = FitConfig()
     rows: list[dict] = json.loads(args.cache.read_text()) if args.cache.exists() else []
-    done = {(r["world"], r["sharing"], r["tasks"], r["demos"]) for r in rows}
+    done = {(r["world"], r["sharing"], r["tasks"], r["demos"]) for r in rows if r.get("revision") == REVISION}
     todo = [
         k
         for k in itertools.product(range(args.worlds), args.sharing, args.tasks, args.demos)
@@ -146,12 +154,15 @@ def main() -> None:
             cache[w] = world_and_tasks(w)
         world, sims = cache[w]
         out = run_one(world, sims, n_tasks=n_tasks, n_demos=n_demos, config=replace(config, sharing=sharing))
-        rows.append({"world": w, "sharing": sharing, "tasks": n_tasks, "demos": n_demos, **out})
+        rows.append(
+            {"world": w, "sharing": sharing, "tasks": n_tasks, "demos": n_demos, "revision": REVISION, **out}
+        )
         args.cache.write_text(json.dumps(rows, indent=0))
     wanted = [
         r
         for r in rows
-        if r["world"] < args.worlds
+        if r.get("revision") == REVISION
+        and r["world"] < args.worlds
         and r["sharing"] in args.sharing
         and r["tasks"] in args.tasks
         and r["demos"] in args.demos
