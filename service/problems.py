@@ -97,6 +97,13 @@ class DatabaseUnavailable(ApiError):
     status, type, title = 503, "database-unavailable", "Database unavailable"
 
 
+def database_unavailable() -> DatabaseUnavailable:
+    """The 503 of a lost or refused database connection, with ``Retry-After: 1``."""
+    return DatabaseUnavailable(
+        "The database could not be reached; retry in a moment.", headers={"Retry-After": "1"}
+    )
+
+
 def problem_type(slug: str) -> str:
     """The `type` URI of a problem (relative, resolved against the service's address)."""
     return f"/problems/{slug}"
@@ -254,11 +261,7 @@ def install_handlers(app: FastAPI) -> None:
     async def _database_unavailable(request: Request, exc: OperationalError) -> JSONResponse:
         """A lost or refused database connection (the API does not ping connections before use): 503."""
         log.warning("database unavailable on %s %s: %s", request.method, request.url.path, exc.orig)
-        return problem_response(
-            DatabaseUnavailable(
-                "The database could not be reached; retry in a moment.", headers={"Retry-After": "1"}
-            )
-        )
+        return problem_response(database_unavailable())
 
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:

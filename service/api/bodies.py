@@ -8,8 +8,9 @@ from typing import Any, TypeVar
 from fastapi import Request
 from pydantic import TypeAdapter, ValidationError
 from starlette.datastructures import FormData, UploadFile
+from starlette.exceptions import HTTPException
 
-from service.problems import UnsupportedMediaType, not_utf8_json, validation_errors
+from service.problems import Unprocessable, UnsupportedMediaType, not_utf8_json, validation_errors
 
 T = TypeVar("T")
 MAX_FORM_FIELDS = 50
@@ -39,8 +40,17 @@ async def json_body(request: Request, adapter: TypeAdapter[T]) -> T:
 
 
 async def form_body(request: Request) -> tuple[FormData, UploadFile]:
-    """A multipart form and its single file (whatever the field's name); 422 if there is no file."""
-    form = await request.form(max_files=1, max_fields=MAX_FORM_FIELDS)
+    """A multipart form and its single file (whatever the field's name); 422 if there is no file, or if the body
+    is not well-formed multipart or has too many parts (Starlette's 400, like malformed JSON's 422)."""
+    try:
+        form = await request.form(max_files=1, max_fields=MAX_FORM_FIELDS)
+    except HTTPException as exc:
+        if exc.status_code != 400:
+            raise
+        raise Unprocessable(
+            f"The multipart body is invalid: {exc.detail}",
+            errors=[{"pointer": "", "message": f"is not a valid multipart form: {exc.detail}"}],
+        ) from exc
     files = [v for v in form.values() if isinstance(v, UploadFile)]
     if not files:
         raise validation_errors([{"loc": ("file",), "msg": "a file part is required"}], None)

@@ -21,13 +21,13 @@ from datetime import timedelta
 from typing import Any
 
 from sqlalchemy import delete, or_, select, update
-from sqlalchemy.exc import IntegrityError
+from sqlalchemy.exc import IntegrityError, OperationalError
 from sqlalchemy.orm import Session, sessionmaker
 from starlette.concurrency import run_in_threadpool
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from service.api.auth import lab_for_key
-from service.problems import ApiError, Conflict, Unprocessable, problem_response
+from service.problems import ApiError, Conflict, Unprocessable, database_unavailable, problem_response
 from service.settings import Settings
 from service.store.models.base import utcnow
 from service.store.models.idempotency import IdempotentRequest
@@ -99,7 +99,11 @@ class Idempotency:
         body = await _read_body(receive)
         fp = fingerprint(scope, body)
         claim = secrets.token_hex(16)
-        outcome = await run_in_threadpool(self._claim, makers, bearer, key, fp, claim)
+        try:
+            outcome = await run_in_threadpool(self._claim, makers, bearer, key, fp, claim)
+        except OperationalError as exc:  # outside the app's exception handlers: answer its 503 here
+            log.warning("database unavailable while claiming an Idempotency-Key: %s", exc.orig)
+            outcome = database_unavailable()
         if isinstance(outcome, ApiError):
             await problem_response(outcome)(scope, receive, send)
             return
@@ -130,7 +134,10 @@ class Idempotency:
             await self.app(scope, _replaying_receive(body, receive), capturing_send)
         finally:
             renewing.cancel()
-            await run_in_threadpool(self._finish, makers, lab_id, key, claim, captured)
+            try:
+                await run_in_threadpool(self._finish, makers, lab_id, key, claim, captured)
+            except OperationalError as exc:  # the response went out; the lease lapses and a retry takes over
+                log.warning("database unavailable while recording Idempotency-Key %r: %s", key, exc.orig)
 
     def _claim(
         self, makers: sessionmaker[Session], bearer: str, key: str, fp: str, claim: str

@@ -42,6 +42,11 @@ PROBLEM_RESPONSES: dict[int | str, dict[str, Any]] = {
         "address; `Retry-After` gives the seconds to wait (problem+json).",
         "headers": {"Retry-After": {"description": "Seconds to wait.", "schema": {"type": "integer"}}},
     },
+    503: {
+        "description": "The database cannot be reached or dropped the connection (it is restarting); "
+        "`Retry-After` gives the seconds to wait (problem+json).",
+        "headers": {"Retry-After": {"description": "Seconds to wait.", "schema": {"type": "integer"}}},
+    },
 }
 """Error responses documented on every `/v1` route."""
 

@@ -87,6 +87,24 @@ def test_malformed_json_points_at_the_body_and_names_line_and_column(
     assert "line 3 column 1" in body["errors"][0]["message"] and "not valid JSON" in body["detail"]
 
 
+def test_a_malformed_multipart_body_is_422(client: TestClient, auth: dict[str, str]) -> None:
+    task = make_task(client, auth)
+    malformed = b"--b\r\n-10880--b--\r\n"  # found by schemathesis: was Starlette's undocumented 400
+    for route in ("/v1/mdps", f"/v1/tasks/{task['id']}/demonstrations"):
+        response = client.post(
+            route, content=malformed, headers=auth | {"Content-Type": "multipart/form-data; boundary=b"}
+        )
+        assert problem(response, 422)["errors"][0]["pointer"] == ""
+
+
+def test_every_v1_route_documents_401_and_the_503_of_a_database_outage(app: FastAPI) -> None:
+    for path, item in app.openapi()["paths"].items():
+        if path.startswith("/v1/"):
+            for method, operation in item.items():
+                assert {"401", "503"} <= set(operation["responses"]), (method, path)
+                assert "Retry-After" in operation["responses"]["503"]["headers"], (method, path)
+
+
 def test_json_that_is_not_utf8_is_422(client: TestClient, auth: dict[str, str]) -> None:
     for route in ("/v1/demonstrators", "/v1/mdps"):
         body = problem(

@@ -11,13 +11,14 @@ from typing import Any
 from fastapi import APIRouter, Response, status
 
 from service.api.deps import LabDep, SessionDep, SettingsDep
+from service.api.openapi import PROBLEM_RESPONSES
 from service.api.pagination import Page, PageDep
 from service.api.schemas.webhooks import WebhookCreated, WebhookIn, WebhookOut
 from service.jobs.webhooks import check_target, new_secret
 from service.problems import Unprocessable
 from service.store import webhooks
 
-router = APIRouter(tags=["webhooks"])
+router = APIRouter(tags=["webhooks"], responses=PROBLEM_RESPONSES)
 
 NO_SUCH_WEBHOOK: dict[int | str, dict[str, Any]] = {404: {"description": "No such webhook in your lab."}}
 
