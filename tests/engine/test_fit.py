@@ -155,7 +155,7 @@ def test_progress_is_reported_every_step_and_best_step_is_kept() -> None:
     assert result.best_step >= 1 + int(np.argmin(np.array([p.heldout_nll for p in seen], dtype=float)))
 
 
-def test_stopper_keeps_steps_within_one_standard_error_and_stops_when_no_new_best_for_patience_steps() -> None:
+def test_stopper_keeps_steps_within_one_se_and_stops_after_patience_steps_without_a_new_best() -> None:
     stopper = HeldOutStopper(patience=3)
     assert stopper.update(1, torch.tensor([1.0, 3.0]))  # best 2.0, standard error 1.414 / √2 = 1.0
     assert stopper.update(2, torch.tensor([2.4, 3.4]))  # 2.9 ≤ 2.0 + 1.0: kept, not a new best
