@@ -97,6 +97,16 @@ class DatabaseUnavailable(ApiError):
     status, type, title = 503, "database-unavailable", "Database unavailable"
 
 
+class BrokerUnavailable(ApiError):
+    """The job broker could not take a job's message: nothing was stored, so the same request can be retried."""
+
+    status, type, title = 503, "broker-unavailable", "Job broker unavailable"
+
+
+BROKER_RETRY_AFTER_S = 5
+"""`Retry-After` of a refused submission: long enough for a restarting broker, short for a blip."""
+
+
 def database_unavailable() -> DatabaseUnavailable:
     """The 503 of a lost or refused database connection, with ``Retry-After: 1``."""
     return DatabaseUnavailable(

@@ -43,6 +43,12 @@ def delete_job(session: Session, job: Job) -> None:
     _delete_jobs(session, [job.id])
 
 
+def discard_unsent_job(session: Session, job_id: str) -> None:
+    """Delete a job just created whose message the broker refused (no worker can have it) and its events."""
+    session.execute(delete(JobEvent).where(JobEvent.job_id == job_id))
+    session.execute(delete(Job).where(Job.id == job_id, Job.status == JobStatus.QUEUED))
+
+
 def delete_task(session: Session, task: Task) -> None:
     """Delete a task with its demonstrations, true reward and every job that fitted it (their rewards and
     events too); 409 while such a job is queued or running."""

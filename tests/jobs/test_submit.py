@@ -199,13 +199,20 @@ def test_same_idempotency_key_and_body_creates_one_job_and_sends_one_message(
     assert other.json()["id"] != first.json()["id"] and queue.waiting() == 2
 
 
-def test_broker_refusing_the_message_fails_the_job_with_the_reason(
+def test_broker_refusing_the_message_is_503_with_retry_after_and_stores_no_job(
     app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
 ) -> None:
     app.state.job_queue = CeleryJobQueue(settings.model_copy(update={"broker_url": "redis://127.0.0.1:1/0"}))
-    demonstrator_id, _ = demonstrated_tasks(client, auth, 1)
-    job = submit(client, auth, demonstrator_id, QUICK)
-    assert job["status"] == "failed"
-    assert "could not be handed to a worker" in job["error"]
-    assert "redis://127.0.0.1:1/0" in job["error"]
-    assert client.get(f"/v1/jobs/{job['id']}", headers=auth).json()["status"] == "failed"
+    demonstrator_id, task_ids = demonstrated_tasks(client, auth, 1)
+    body = {"demonstrator_id": demonstrator_id, "task_ids": task_ids, "config": QUICK}
+    refused = client.post("/v1/jobs", json=body, headers={**auth, "Idempotency-Key": "blip"})
+    assert refused.status_code == 503, refused.text
+    assert refused.headers["content-type"].startswith("application/problem+json")
+    assert int(refused.headers["Retry-After"]) > 0
+    assert "could not be handed to a worker" in refused.json()["detail"]
+    assert "redis://127.0.0.1:1/0" in refused.json()["detail"]
+    assert client.get("/v1/jobs", headers=auth).json()["data"] == []
+    # The broker is back: the same request, same key, is queued (the 503 was not recorded for replay).
+    app.state.job_queue = CeleryJobQueue(settings)
+    accepted = client.post("/v1/jobs", json=body, headers={**auth, "Idempotency-Key": "blip"})
+    assert accepted.status_code == 202 and accepted.json()["status"] == "queued"

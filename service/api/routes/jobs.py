@@ -17,11 +17,14 @@ from service.api.pagination import Page, PageDep
 from service.api.responses import DELETED, NO_SUCH_JOB
 from service.api.schemas.jobs import JobEventOut, JobIn, JobOut
 from service.api.sse import MEDIA_TYPE, job_events, parse_last_event_id, wants_stream
+from service.jobs.queue import EnqueueFailed
 from service.jobs.status import JobStatus
 from service.jobs.submit import create_job
-from service.jobs.transitions import cancel, send_or_fail
+from service.jobs.transitions import cancel
+from service.problems import BROKER_RETRY_AFTER_S, BrokerUnavailable
 from service.store import jobs
 from service.store.deletion import delete_job as delete_job_rows
+from service.store.deletion import discard_unsent_job
 
 router = APIRouter(tags=["jobs"], responses=PROBLEM_RESPONSES)
 
@@ -37,12 +40,20 @@ def submit_job(
 ) -> JobOut:
     """Queue a fit of the demonstrator's tasks; poll `Location` for status and progress.
 
-    If the job broker cannot be reached the job is returned already `failed`, with the reason in `error`.
+    If the job broker cannot be reached the answer is 503 with `Retry-After` and no job is stored, so the same
+    request (same `Idempotency-Key`) can simply be sent again.
     """
     job = create_job(session, lab_id=lab.id, body=body, settings=settings)
     session.commit()  # before the message: a worker never receives a job that is not in the database
-    if not send_or_fail(session, queue, job.id):
+    try:
+        queue.enqueue(job.id)
+    except EnqueueFailed as exc:
+        discard_unsent_job(session, job.id)
         session.commit()
+        raise BrokerUnavailable(
+            f"The job could not be handed to a worker ({exc}); nothing was stored. Retry once the broker is back.",
+            headers={"Retry-After": str(BROKER_RETRY_AFTER_S)},
+        ) from exc
     session.refresh(job)
     response.headers["Location"] = f"/v1/jobs/{job.id}"
     return JobOut.of(job)
