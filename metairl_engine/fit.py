@@ -29,7 +29,7 @@ from metairl_engine.demos import validate_trajectories
 from metairl_engine.errors import Cancelled, InvalidInput, Issue, check
 from metairl_engine.holdout import Steps, split_steps
 from metairl_engine.mdp import MDP
-from metairl_engine.memory import EVAL_CHUNK, TRAIN_CHUNK
+from metairl_engine.memory import EVAL_CHUNK, TRAIN_CHUNK, retained_heap
 from metairl_engine.networks import StackedMLP, fourier_features
 from metairl_engine.results import FitResult, Progress, TaskData
 from metairl_engine.sharing import segment_sum, sharing_loss
@@ -58,7 +58,8 @@ def fit(
         from metairl_engine.maxent import fit_maxent
 
         return fit_maxent(tasks, config, progress=progress, should_stop=should_stop)
-    return _fit_meta_irl(tasks, config, progress=progress, should_stop=should_stop)
+    with retained_heap():
+        return _fit_meta_irl(tasks, config, progress=progress, should_stop=should_stop)
 
 
 def validate_tasks(tasks: Sequence[TaskData]) -> None:

@@ -7,7 +7,11 @@ The chunk sizes that bound the fit's per-state tensors live here too, since the 
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import itertools
+import platform
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 from metairl_engine.config import FitConfig, ensemble_size
@@ -190,3 +194,40 @@ def fit_memory(
         + t * s * a * 2 * FLOAT  # the mean policies and their float32 copy in the result
     )
     return FitMemory(RUNTIME, inputs, networks, rows, training, evaluation)
+
+
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameters (malloc.h)
+KEPT_HEAP = 1 << 30
+"""Freed memory glibc may keep for reuse during a fit (`retained_heap`)."""
+
+
+@contextlib.contextmanager
+def retained_heap() -> Iterator[None]:
+    """Let glibc keep freed memory for reuse while a fit runs, and give it back to the system at the end.
+
+    Each step allocates and frees the same few per-state tensors (megabytes each). glibc hands blocks that
+    large to mmap, or trims them off its heap, so every step faulted its tensors' pages in afresh: ~4,000
+    page faults per step of a 576-state 32-network fit, a quarter of its time. With mmap reserved for blocks
+    over 256 MB and the heap trimmed only past `KEPT_HEAP`, later steps reuse the pages. The settings stay
+    for the rest of the process (glibc cannot report the ones they replace); the fit's freed memory goes back
+    at its end. Elsewhere than glibc (macOS, musl) this does nothing.
+    """
+    libc = _glibc()
+    if libc is not None:
+        libc.mallopt(_M_MMAP_THRESHOLD, 1 << 28)
+        libc.mallopt(_M_TRIM_THRESHOLD, KEPT_HEAP)
+    try:
+        yield
+    finally:
+        if libc is not None:
+            libc.malloc_trim(0)
+
+
+def _glibc() -> ctypes.CDLL | None:
+    """The C library when it is glibc (it has mallopt and malloc_trim), else None."""
+    if platform.system() != "Linux" or platform.libc_ver()[0] != "glibc":
+        return None
+    try:
+        return ctypes.CDLL("libc.so.6")
+    except OSError:
+        return None
