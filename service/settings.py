@@ -98,8 +98,9 @@ class Settings(BaseSettings):
     reaper_interval_s: float = 15.0
     """How often each worker looks for running jobs whose heartbeat stopped and queued jobs whose message was lost."""
 
-    job_requeue_after_s: float = 300.0
-    """A queued job no worker claimed for this long, while the broker queue is empty, has its message sent again."""
+    job_requeue_after_s: float = 30.0
+    """A queued job no worker claimed for this long, while the broker queue is empty, has its message sent again
+    (a worker claims a job the moment it takes its message, and a duplicate message is skipped, so 30 s is safe)."""
 
     job_max_resends: int = 3
     """Times the reaper sends a queued job's message again before failing the job (its messages keep getting lost)."""
