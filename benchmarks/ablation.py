@@ -68,6 +68,8 @@ VARIANTS: dict[str, dict[str, Any]] = {
     },
     "ens4-lr02-steps300": {"ensemble": 4, "learning_rate": 0.02, "max_steps": 300},
     "patience100": {"patience": 100},
+    "lr02": {"learning_rate": 0.02},
+    "visited": {"sharing_states": "visited"},
 }
 """Named FitConfig overrides; ``default`` is whatever FitConfig() is at the time of the run."""
 
