@@ -36,21 +36,30 @@ SIZE = 100
 CONFIG = FitConfig(sharing="huber", sharing_states="all")
 
 
+def motion_reward(goal_cell: int, *, seed: int) -> np.ndarray:
+    """The true reward of the motion task to ``goal_cell``: −terrain cost (the same in every direction
+    channel) plus a bonus of 3 in the goal cell's 8 direction states."""
+    reward = -np.tile(make_world(size=SIZE, n_hills=12, seed=seed).cost, 8).astype(np.float64)
+    reward[goal_cell :: SIZE * SIZE] += 3.0
+    return reward
+
+
+def motion_goal(task: TaskData) -> int:
+    """The goal cell of a `motion_tasks` task (its name says it)."""
+    return int(task.name.removeprefix("goal "))
+
+
 def motion_tasks(n_tasks: int, *, n_demos: int = 3, seed: int = 0) -> list[TaskData]:
-    """Tasks on the velocity grid: reward = −terrain cost + a goal-cell bonus, soft-optimal demonstrations."""
+    """Tasks on the velocity grid: reward = `motion_reward` of a random goal cell, soft-optimal demonstrations."""
     mdp: MDP = grid_mdp(width=SIZE, height=SIZE, velocity=True, gamma=0.9)
     assert mdp.next_state is not None
-    cost = np.tile(
-        make_world(size=SIZE, n_hills=12, seed=seed).cost, 8
-    )  # same cost in every direction channel
     p = transition_matrix(mdp)
     rng = np.random.default_rng(seed)
     cells = SIZE * SIZE
     tasks = []
     for _ in range(n_tasks):
         goal_cell = int(rng.integers(cells))
-        reward = -cost.astype(np.float64)
-        reward[goal_cell::cells] += 3.0
+        reward = motion_reward(goal_cell, seed=seed)
         policy = value_iteration(p, reward, gamma=mdp.gamma, confidence=2.0, tolerance=1e-4).policy
         demos = []
         for _ in range(n_demos):

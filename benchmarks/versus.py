@@ -109,21 +109,15 @@ def terrain_problem(size: int, world: int) -> Problem:
 
 def motion_problem() -> Problem:
     """scale.py's 80,000-state velocity-grid tasks, with the true reward `motion_tasks` demonstrated."""
-    from scale import SIZE, motion_tasks
-
-    from metairl_engine.terrain import make_world
+    from scale import SIZE, motion_goal, motion_reward, motion_tasks
 
     tasks = motion_tasks(N_TASKS, n_demos=N_DEMOS, seed=0)
-    cells = SIZE * SIZE
-    cost = np.tile(make_world(size=SIZE, n_hills=12, seed=0).cost, 8)  # as motion_tasks builds it
     rewards, scored = [], []
     for task in tasks:
-        goal_cell = int(task.name.removeprefix("goal "))  # motion_tasks names a task by its goal cell
-        reward = -cost.astype(np.float64)
-        reward[goal_cell::cells] += 3.0
+        goal_cell = motion_goal(task)
         keep = np.ones(task.mdp.n_states, dtype=bool)
-        keep[goal_cell::cells] = False  # the goal cell's 8 direction states
-        rewards.append(reward)
+        keep[goal_cell :: SIZE * SIZE] = False  # the goal cell's 8 direction states
+        rewards.append(motion_reward(goal_cell, seed=0))
         scored.append(keep)
     return Problem(
         states=tasks[0].mdp.n_states, world=0, side=SIZE, tasks=tasks, true_rewards=rewards, scored=scored

@@ -3,6 +3,7 @@ heap a fit keeps for reuse while it runs goes back to the system when it ends.""
 
 from __future__ import annotations
 
+import os
 import platform
 
 import pytest
@@ -66,7 +67,7 @@ def test_advice_names_the_config_that_shrinks_the_largest_part() -> None:
 def resident_bytes() -> int:
     """This process's resident memory (Linux)."""
     with open("/proc/self/statm") as statm:
-        return int(statm.read().split()[1]) * 4096
+        return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
 @pytest.mark.skipif(platform.libc_ver()[0] != "glibc", reason="the heap is kept for reuse only with glibc")
