@@ -2,10 +2,13 @@
 
 Measures, for meta-IRL with Huber sharing on all states and the default MLP [100, 50, 25]:
 seconds per optimisation step and peak RSS for 1, 4, 8, 16 tasks (each in a fresh process, so RSS is
-that fit's alone); steps and wall time to the default stopping rule for 8 and 16 tasks; and the MaxEnt
-reference solver's time per task on the same MDP. Usage::
+that fit's alone); steps, wall time and accuracy (mean Pearson of each task's reward with its true
+reward, on all states and on the states its demonstrations visited) to the default stopping rule for 8
+and 16 tasks; and the MaxEnt reference solver's time per task on the same MDP. ``--blocks`` repeats the
+step and full rows for each value of `FitConfig.sharing_blocks` (0: automatic, 1: every state every
+step). Usage::
 
-    .venv/bin/python benchmarks/scale.py [--tasks 1 4 8 16] [--steps 10] [--full 8 16] [--maxent 1] [--threads N]
+    .venv/bin/python benchmarks/scale.py [--tasks 1 4 8 16] [--steps 10] [--full 8 16] [--maxent 1] [--threads N] [--blocks 0 1]
 """
 
 from __future__ import annotations
@@ -76,7 +79,18 @@ def motion_tasks(n_tasks: int, *, n_demos: int = 3, seed: int = 0) -> list[TaskD
     return tasks
 
 
-def child(mode: str, n_tasks: int, steps: int, threads: int) -> dict[str, float]:
+def accuracy(tasks: list[TaskData], rewards: np.ndarray) -> tuple[float, float]:
+    """Mean Pearson of each task's learned reward with its true one: on all states, on its visited states."""
+    everywhere, visited = [], []
+    for task, learned in zip(tasks, rewards, strict=True):
+        true = motion_reward(motion_goal(task), seed=0)
+        seen = np.unique(np.concatenate([tr.states for tr in task.trajectories]))
+        everywhere.append(np.corrcoef(learned, true)[0, 1])
+        visited.append(np.corrcoef(learned[seen], true[seen])[0, 1])
+    return float(np.mean(everywhere)), float(np.mean(visited))
+
+
+def child(mode: str, n_tasks: int, steps: int, threads: int, blocks: int) -> dict[str, float]:
     """Run one measurement in this process and return its numbers (called in a fresh subprocess)."""
     import torch
 
@@ -85,14 +99,15 @@ def child(mode: str, n_tasks: int, steps: int, threads: int) -> dict[str, float]
 
     from metairl_engine.fit import fit
 
+    config = replace(CONFIG, sharing_blocks=blocks)
     tasks = motion_tasks(n_tasks)
     rss_before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     times: list[tuple[float, float]] = []
     if mode == "step":
-        fit(tasks, replace(CONFIG, max_steps=2, holdout_fraction=0.0))  # warm-up
+        fit(tasks, replace(config, max_steps=2, holdout_fraction=0.0))  # warm-up
         result = fit(
             tasks,
-            replace(CONFIG, max_steps=steps, holdout_fraction=0.0, tolerance=0.0),
+            replace(config, max_steps=steps, holdout_fraction=0.0, tolerance=0.0),
             progress=lambda p: times.append((p.elapsed_s, time.process_time())),
         )
         wall, cpu = np.diff(np.array(times), axis=0).T
@@ -106,15 +121,18 @@ def child(mode: str, n_tasks: int, steps: int, threads: int) -> dict[str, float]
         }
     elif mode == "full":
         started = time.perf_counter()
-        result = fit(tasks, CONFIG)
+        result = fit(tasks, config)
+        everywhere, visited = accuracy(tasks, result.rewards)
         out = {
             "steps": len(result.history),
             "kept_step": result.best_step,
             "wall_s": time.perf_counter() - started,
+            "pearson_all": everywhere,
+            "pearson_visited": visited,
         }
     else:
         started = time.perf_counter()
-        result = fit(tasks, replace(CONFIG, method="maxent"))
+        result = fit(tasks, replace(config, method="maxent"))
         out = {"s_per_task": (time.perf_counter() - started) / n_tasks, "iterations": len(result.history)}
     out["peak_rss_gb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2
     out["rss_before_fit_gb"] = rss_before / 1024
@@ -122,9 +140,9 @@ def child(mode: str, n_tasks: int, steps: int, threads: int) -> dict[str, float]
     return out
 
 
-def measure(mode: str, n_tasks: int, steps: int, threads: int) -> dict[str, float]:
+def measure(mode: str, n_tasks: int, steps: int, threads: int, blocks: int = 0) -> dict[str, float]:
     """Run `child` in a fresh interpreter so peak RSS belongs to this measurement only."""
-    cmd = [sys.executable, __file__, "--child", mode, str(n_tasks), str(steps), str(threads)]
+    cmd = [sys.executable, __file__, "--child", mode, str(n_tasks), str(steps), str(threads), str(blocks)]
     done = subprocess.run(cmd, capture_output=True, text=True, check=True)
     return dict(json.loads(done.stdout.strip().splitlines()[-1]))
 
@@ -137,34 +155,40 @@ def main() -> None:
     parser.add_argument("--full", type=int, nargs="*", default=[8, 16])
     parser.add_argument("--maxent", type=int, default=1, help="tasks for the MaxEnt timing (0 skips)")
     parser.add_argument("--threads", type=int, default=0, help="torch threads (0: torch's default)")
-    parser.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--blocks", type=int, nargs="*", default=[0], help="sharing_blocks values (0: automatic)"
+    )
+    parser.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
-        mode, n_tasks, steps, threads = args.child
-        print(json.dumps(child(mode, int(n_tasks), int(steps), int(threads))))
+        mode, n_tasks, steps, threads, blocks = args.child
+        print(json.dumps(child(mode, int(n_tasks), int(steps), int(threads), int(blocks))))
         return
     print(
-        "| measurement | tasks | s/step (CPU s/step) | s/task-step | steps (kept) | wall s | peak RSS GB | load |"
+        "| measurement | sharing_blocks | tasks | s/step (CPU s/step) | s/task-step | steps (kept) | wall s "
+        "| Pearson all (visited) | peak RSS GB | load |"
     )
-    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
-    for n in args.tasks:
-        r = measure("step", n, args.steps, args.threads)
-        print(
-            f"| step time | {n} | {r['s_per_step']:.3f} ({r['cpu_s_per_step']:.3f}) | {r['s_per_task_step']:.3f} "
-            f"| | | {r['peak_rss_gb']:.2f} | {r['load_average']:.1f} |",
-            flush=True,
-        )
-    for n in args.full:
-        r = measure("full", n, 0, args.threads)
-        print(
-            f"| to stopping rule | {n} | | | {r['steps']} ({r['kept_step']}) | {r['wall_s']:.0f} "
-            f"| {r['peak_rss_gb']:.2f} | {os.getloadavg()[0]:.1f} |",
-            flush=True,
-        )
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    for blocks in args.blocks:
+        for n in args.tasks:
+            r = measure("step", n, args.steps, args.threads, blocks)
+            print(
+                f"| step time | {blocks} | {n} | {r['s_per_step']:.3f} ({r['cpu_s_per_step']:.3f}) "
+                f"| {r['s_per_task_step']:.3f} | | | | {r['peak_rss_gb']:.2f} | {r['load_average']:.1f} |",
+                flush=True,
+            )
+        for n in args.full:
+            r = measure("full", n, 0, args.threads, blocks)
+            print(
+                f"| to stopping rule | {blocks} | {n} | | | {r['steps']} ({r['kept_step']}) | {r['wall_s']:.0f} "
+                f"| {r['pearson_all']:.3f} ({r['pearson_visited']:.3f}) | {r['peak_rss_gb']:.2f} "
+                f"| {os.getloadavg()[0]:.1f} |",
+                flush=True,
+            )
     if args.maxent:
         r = measure("maxent", args.maxent, 0, args.threads)
         print(
-            f"| maxent | {args.maxent} | | {r['s_per_task']:.1f} s/task | {r['iterations']} | "
+            f"| maxent | | {args.maxent} | | {r['s_per_task']:.1f} s/task | {r['iterations']} | | "
             f"| {r['peak_rss_gb']:.2f} | {os.getloadavg()[0]:.1f} |",
             flush=True,
         )

@@ -78,9 +78,10 @@ def trace(world: World, sims: list[SimTask], *, steps: int, every: int, config: 
     temperatures = torch.logspace(-2, 2, 17, base=2.0)
     for step in range(1, steps + 1):
         optimiser.zero_grad(set_to_none=True)
-        *_, f = gradient_step(problem, vr, base, config)
+        block = (step - 1) % len(problem.blocks)
+        *_, f = gradient_step(problem, vr, base, config, block=block)
         with torch.no_grad():
-            q = problem.q_held(f)
+            q = problem.blocks[block].q_held(f)
             per_step = F.cross_entropy(q, problem.held_actions, reduction="none")
             scaled = torch.stack(
                 [F.cross_entropy(t * q, problem.held_actions, reduction="none") for t in temperatures]

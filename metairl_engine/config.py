@@ -37,6 +37,14 @@ class FitConfig:
     sharing_states: SharingStates = "all"
     """Evaluate the sharing loss on all states or only on states visited by the task's demonstrations."""
 
+    sharing_blocks: int = 0
+    """With ``sharing_states="all"``: the states are split at random into this many fixed blocks and each
+    step compares r_i with r_b on one block, in turn, so every state is compared once every this many steps.
+    The per-state mean over a block is an unbiased estimate of the mean over all states at a fraction of the
+    cost; the rewards returned are still evaluated on every state. 0 (default): automatic
+    (`sharing_block_count`: one block below 32,768 states, blocks of about 8,192 states above); 1: every
+    state every step."""
+
     baseline_features: tuple[int, ...] | None = None
     """Columns of the MDP's state features that the baseline network r_b sees; None: all of them, like the VR
     networks. On a velocity grid (features x, y, direction one-hot) ``(0, 1)`` makes r_b a function of the
@@ -117,6 +125,7 @@ class FitConfig:
         need(0 <= self.holdout_fraction < 1, "holdout_fraction", "must be in [0, 1)")
         need(self.patience >= 0, "patience", "must be ≥ 0")
         need(0 <= self.ensemble <= 16, "ensemble", "must be in 0..16 (0: automatic)")
+        need(0 <= self.sharing_blocks <= 1024, "sharing_blocks", "must be in 0..1024 (0: automatic)")
         need(self.seed >= 0, "seed", "must be ≥ 0")
         check(issues)
 
@@ -159,3 +168,20 @@ def ensemble_size(config: FitConfig, *, n_tasks: int, n_states: int) -> int:
     if config.ensemble:
         return config.ensemble
     return max(1, min(MAX_AUTO_MEMBERS, ENSEMBLE_BUDGET // (n_tasks * n_states)))
+
+
+BLOCK_STATES = 2**13
+"""About this many states per sharing block when the blocks are automatic (``FitConfig.sharing_blocks = 0``)."""
+
+MIN_BLOCKS = 4
+"""The fewest automatic blocks worth having: with fewer, a block's successors cover most of the states and a
+step costs nearly as much as one on all of them."""
+
+
+def sharing_block_count(config: FitConfig, *, n_states: int) -> int:
+    """Blocks of the all-states sharing loss: ``config.sharing_blocks``, or with 0 about one per
+    BLOCK_STATES states once there are at least MIN_BLOCKS of them (else 1: every state every step)."""
+    if config.sharing_blocks:
+        return min(config.sharing_blocks, n_states)
+    blocks = n_states // BLOCK_STATES
+    return blocks if blocks >= MIN_BLOCKS else 1

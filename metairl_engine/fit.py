@@ -24,7 +24,7 @@ import torch
 import torch.nn.functional as F
 
 from metairl_engine.backups import QRows, backup, successors
-from metairl_engine.config import FitConfig, ensemble_size
+from metairl_engine.config import FitConfig, ensemble_size, sharing_block_count
 from metairl_engine.demos import validate_trajectories
 from metairl_engine.errors import Cancelled, InvalidInput, Issue, check
 from metairl_engine.holdout import Steps, split_steps
@@ -137,43 +137,27 @@ class _Problem:
             torch.from_numpy(np.flatnonzero(held_member == k)) for k in range(self.n_members)
         ]
 
-        # Rows (network, state) on which the sharing loss compares r_i with r_b.
+        # Rows (network, state) on which the sharing loss compares r_i with r_b: one set per block, one
+        # block a step (`FitConfig.sharing_blocks`).
         if config.sharing == "none":
-            share = Steps(*(np.zeros(0, dtype=np.int64) for _ in range(3)))
+            shares = [Steps(*(np.zeros(0, dtype=np.int64) for _ in range(3)))]
         elif config.sharing_states == "all":
-            share_nets = np.repeat(np.arange(self.n_nets), self.n_states)
-            share = Steps(share_nets, np.tile(np.arange(self.n_states), self.n_nets), 0 * share_nets)
+            n_blocks = sharing_block_count(config, n_states=self.n_states)
+            shares = [
+                _all_rows(b, self.n_nets) for b in sharing_blocks(self.mdps, n_blocks, seed=config.seed)
+            ]
         else:
             visited = [np.unique(np.concatenate([tr.states for tr in t.trajectories])) for t in tasks]
             visited *= self.n_members
             share_nets = np.concatenate([np.full(len(v), j) for j, v in enumerate(visited)]).astype(np.int64)
-            share = Steps(share_nets, np.concatenate(visited).astype(np.int64), 0 * share_nets)
-
-        # U: the states where f is needed (successors of every row, plus the sharing states themselves).
-        needed = [successors(self.mdps, s.tasks, s.states) for s in (self.train, self.held, share) if len(s)]
-        self.states_u = np.unique(np.concatenate([*needed, share.states]))
-        columns = np.full(self.n_states, -1, dtype=np.int64)
-        columns[self.states_u] = np.arange(len(self.states_u))
-        n_u = len(self.states_u)
-
-        def rows(s: Steps) -> QRows:
-            return QRows(self.mdps, s.tasks, s.states, columns=columns, n_columns=n_u)
-
-        self.q_train, self.q_held = rows(self.train), rows(self.held)
+            shares = [Steps(share_nets, np.concatenate(visited).astype(np.int64), 0 * share_nets)]
         self.train_actions = torch.from_numpy(self.train.actions)
         self.train_tasks = torch.from_numpy(self.train.tasks)
         self.held_actions = torch.from_numpy(self.held.actions)
-        self.share_tasks = torch.from_numpy(share.tasks)
-        if len(share):
-            self.q_share = rows(share)
-            self.share_f = torch.from_numpy(share.tasks * n_u + columns[share.states])
-            self.base_states, base_index = np.unique(share.states, return_inverse=True)
-            member = share.tasks // self.n_tasks  # row k of the baseline network's (K, B) outputs
-            self.share_base = torch.from_numpy(member * len(self.base_states) + base_index.astype(np.int64))
-            self.inputs_base = self.inputs(self.base_states, base=True)
-        else:
-            self.base_states = np.zeros(0, dtype=np.int64)
-        self.inputs_u = self.inputs(self.states_u)
+        demo_states = np.concatenate(
+            [successors(self.mdps, s.tasks, s.states) for s in (self.train, self.held) if len(s)]
+        )
+        self.blocks = [_Block(self, share, demo_states) for share in shares]
 
     def inputs(self, states: np.ndarray, *, base: bool = False) -> torch.Tensor:
         """Network inputs of these states: feature rows (the baseline's own if ``base``), or the state
@@ -181,6 +165,68 @@ class _Problem:
         index = torch.from_numpy(states.astype(np.int64))
         features = self.base_features if base else self.features
         return index if features is None else features[index]
+
+
+class _Block:
+    """What one step evaluates: the states U where f is needed — successors of every demonstrated step, one
+    block of sharing rows (network, state) and those rows' successors — and the indices that read Q, r and
+    r_b off the networks' outputs on U."""
+
+    def __init__(self, problem: _Problem, share: Steps, demo_states: np.ndarray):
+        needed = (
+            [demo_states, successors(problem.mdps, share.tasks, share.states), share.states]
+            if len(share)
+            else [demo_states]
+        )
+        self.states_u = np.unique(np.concatenate(needed))
+        columns = np.full(problem.n_states, -1, dtype=np.int64)
+        columns[self.states_u] = np.arange(len(self.states_u))
+        n_u = len(self.states_u)
+
+        def rows(s: Steps) -> QRows:
+            return QRows(problem.mdps, s.tasks, s.states, columns=columns, n_columns=n_u)
+
+        self.q_train, self.q_held = rows(problem.train), rows(problem.held)
+        self.share_tasks = torch.from_numpy(share.tasks)
+        if len(share):
+            self.q_share = rows(share)
+            self.share_f = torch.from_numpy(share.tasks * n_u + columns[share.states])
+            self.base_states, base_index = np.unique(share.states, return_inverse=True)
+            member = share.tasks // problem.n_tasks  # row k of the baseline network's (K, B) outputs
+            self.share_base = torch.from_numpy(member * len(self.base_states) + base_index.astype(np.int64))
+            self.inputs_base = problem.inputs(self.base_states, base=True)
+        else:
+            self.base_states = np.zeros(0, dtype=np.int64)
+        self.inputs_u = problem.inputs(self.states_u)
+
+
+def _all_rows(states: np.ndarray, n_nets: int) -> Steps:
+    """Sharing rows comparing every network with the baseline on each of ``states``."""
+    nets = np.repeat(np.arange(n_nets), len(states))
+    return Steps(nets, np.tile(states, n_nets), 0 * nets)
+
+
+def sharing_blocks(mdps: Sequence[MDP], n_blocks: int, *, seed: int) -> list[np.ndarray]:
+    """All states split at random into ``n_blocks`` sorted blocks of about equal size.
+
+    States with the same successors in every MDP stay in one block (on a velocity grid: the 8 directions of
+    a cell), so a block's Q needs f on about as many other states as it holds, not on most of the MDP.
+    """
+    n_states = mdps[0].n_states
+    if n_blocks == 1:
+        return [np.arange(n_states)]
+    group = np.arange(n_states)
+    tables = [m.next_state for m in {id(m): m for m in mdps}.values() if m.next_state is not None]
+    if len(tables) == len({id(m) for m in mdps}):  # every MDP deterministic: group by successor rows
+        successor_rows: np.ndarray = np.concatenate(tables, axis=1)
+        group = np.unique(successor_rows, axis=0, return_inverse=True)[1].reshape(-1)
+    n_groups = int(group.max()) + 1
+    block_of_group = np.empty(n_groups, dtype=np.int64)
+    block_of_group[np.random.default_rng(seed).permutation(n_groups)] = (
+        np.arange(n_groups) * n_blocks // n_groups
+    )
+    block = block_of_group[group]
+    return [np.flatnonzero(block == b) for b in range(n_blocks)]
 
 
 def _encode(features: np.ndarray, config: FitConfig) -> torch.Tensor:
@@ -272,16 +318,17 @@ class HeldOutStopper:
 
 
 def objective(
-    problem: _Problem, f: torch.Tensor, r_b: torch.Tensor | None, config: FitConfig
+    problem: _Problem, block: _Block, f: torch.Tensor, r_b: torch.Tensor | None, config: FitConfig
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """The training loss from the network outputs: (loss, IRL loss (T,), sharing loss (T,)).
 
-    ``f`` (T·K, |U|) are the VR values f_i(s) = r_i(s) + γ V_i(s) (eq. 5) on the states U, ``r_b`` (K, B)
-    the members' baseline rewards on ``problem.base_states`` (None without sharing).
+    ``f`` (T·K, |U|) are the VR values f_i(s) = r_i(s) + γ V_i(s) (eq. 5) on the block's states U, ``r_b``
+    (K, B) the members' baseline rewards on ``block.base_states`` (None without sharing). The sharing loss
+    is a mean over the block's states: over a random block, an unbiased estimate of the mean over all.
     """
     n_tasks = problem.n_nets
     irl = per_task_nll(  # NLL of demonstrated actions under softmax(b·Q)                 eq. 6, 10
-        problem.q_train(f),
+        block.q_train(f),
         problem.train_actions,
         problem.train_tasks,
         n_tasks=n_tasks,
@@ -289,51 +336,59 @@ def objective(
     )
     shared = torch.zeros(n_tasks, dtype=f.dtype)
     if r_b is not None:
-        v = backup(problem.q_share(f), kind=config.backup, bgi_k=config.bgi_k)  # V_i(s)     eq. 7
-        r = f.reshape(-1)[problem.share_f] - problem.gamma[problem.share_tasks] * v  # r_i  eq. 8
-        diff = r - r_b.reshape(-1)[problem.share_base]
-        shared = sharing_loss(diff, problem.share_tasks, n_tasks=n_tasks, kind=config.sharing)
+        v = backup(block.q_share(f), kind=config.backup, bgi_k=config.bgi_k)  # V_i(s)       eq. 7
+        r = f.reshape(-1)[block.share_f] - problem.gamma[block.share_tasks] * v  # r_i          eq. 8
+        diff = r - r_b.reshape(-1)[block.share_base]
+        shared = sharing_loss(diff, block.share_tasks, n_tasks=n_tasks, kind=config.sharing)
     loss = (irl + config.sharing_weight * shared).mean()  # eq. 1, averaged over tasks
     return loss, irl, shared
 
 
 def gradient_step(
-    problem: _Problem, vr: StackedMLP, base: StackedMLP, config: FitConfig, *, chunk: int = TRAIN_CHUNK
+    problem: _Problem,
+    vr: StackedMLP,
+    base: StackedMLP,
+    config: FitConfig,
+    *,
+    block: int = 0,
+    chunk: int = TRAIN_CHUNK,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Accumulate the loss gradient in the networks' ``.grad``; returns (loss, irl, sharing, f detached).
+    """Accumulate the loss gradient on sharing block ``block`` in the networks' ``.grad``; returns (loss,
+    irl, sharing, f detached on the block's states U).
 
     With more than ``chunk`` states the networks run twice, checkpoint style: once without autograd to get
     f and r_b, whose gradients the loss gives; then chunk by chunk with autograd, back-propagating those
     gradients. Same gradient, activation memory bounded by the chunk instead of T × |U| × width.
     """
+    rows = problem.blocks[block]
     sharing_on = config.sharing != "none"
-    n_u = len(problem.states_u)
-    n_b = len(problem.base_states) if sharing_on else 0
+    n_u = len(rows.states_u)
+    n_b = len(rows.base_states) if sharing_on else 0
     if max(n_u, n_b) <= chunk:
-        f = vr(problem.inputs_u)
-        r_b = base(problem.inputs_base) if sharing_on else None
-        loss, irl, shared = objective(problem, f, r_b, config)
+        f = vr(rows.inputs_u)
+        r_b = base(rows.inputs_base) if sharing_on else None
+        loss, irl, shared = objective(problem, rows, f, r_b, config)
         loss.backward()
         return loss.detach(), irl.detach(), shared.detach(), f.detach()
     with torch.no_grad():
-        f = torch.cat([vr(problem.inputs_u[i : i + chunk]) for i in range(0, n_u, chunk)], dim=1)
+        f = torch.cat([vr(rows.inputs_u[i : i + chunk]) for i in range(0, n_u, chunk)], dim=1)
         r_b = (
-            torch.cat([base(problem.inputs_base[i : i + chunk]) for i in range(0, n_b, chunk)], dim=1)
+            torch.cat([base(rows.inputs_base[i : i + chunk]) for i in range(0, n_b, chunk)], dim=1)
             if n_b
             else None
         )
     f.requires_grad_(True)
     if r_b is not None:
         r_b.requires_grad_(True)
-    loss, irl, shared = objective(problem, f, r_b, config)
+    loss, irl, shared = objective(problem, rows, f, r_b, config)
     loss.backward()
     assert f.grad is not None
     for i in range(0, n_u, chunk):
-        vr(problem.inputs_u[i : i + chunk]).backward(f.grad[:, i : i + chunk])
+        vr(rows.inputs_u[i : i + chunk]).backward(f.grad[:, i : i + chunk])
     if r_b is not None:
         assert r_b.grad is not None
         for i in range(0, n_b, chunk):
-            base(problem.inputs_base[i : i + chunk]).backward(r_b.grad[:, i : i + chunk])
+            base(rows.inputs_base[i : i + chunk]).backward(r_b.grad[:, i : i + chunk])
     return loss.detach(), irl.detach(), shared.detach(), f.detach()
 
 
@@ -384,12 +439,13 @@ def _fit_meta_irl(
         if should_stop is not None and should_stop():
             raise Cancelled(f"fit cancelled at step {step}")
         optimiser.zero_grad(set_to_none=True)
-        loss, irl, shared, f = gradient_step(problem, vr, base, config)
+        block = (step - 1) % len(problem.blocks)  # the sharing blocks in turn
+        loss, irl, shared, f = gradient_step(problem, vr, base, config, block=block)
 
         held_nll: float | None = None
         if len(problem.held):
             with torch.no_grad():
-                q_held = problem.q_held(f)
+                q_held = problem.blocks[block].q_held(f)
                 held_nll = float(F.cross_entropy(config.confidence * q_held, problem.held_actions))
                 folds = calibrated_nll(
                     q_held, problem.held_actions, confidence=config.confidence, groups=problem.held_of_member

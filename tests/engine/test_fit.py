@@ -40,8 +40,9 @@ class LossModule(torch.nn.Module):
         self.problem, self.vr, self.base, self.config = problem, vr, base, config
 
     def forward(self) -> torch.Tensor:
-        f, r_b = self.vr(self.problem.inputs_u), self.base(self.problem.inputs_base)
-        return objective(self.problem, f, r_b, self.config)[0]
+        block = self.problem.blocks[0]
+        f, r_b = self.vr(block.inputs_u), self.base(block.inputs_base)
+        return objective(self.problem, block, f, r_b, self.config)[0]
 
 
 @pytest.mark.parametrize("sharing", ["l2", "huber", "std", "entropy"])
@@ -51,7 +52,8 @@ def test_loss_gradient_matches_finite_differences_in_float64(sharing: str) -> No
     tasks = [task(mdp, soft_demos(mdp, reward, starts=np.array([0, 4]), length=3, seed=s)) for s in (0, 1)]
     config = FitConfig(sharing=sharing, backup="logsumexp", hidden=(4,), holdout_fraction=0.0, ensemble=1)  # type: ignore[arg-type]
     problem = _Problem(tasks, config)
-    problem.inputs_u, problem.inputs_base = problem.inputs_u.double(), problem.inputs_base.double()
+    block = problem.blocks[0]
+    block.inputs_u, block.inputs_base = block.inputs_u.double(), block.inputs_base.double()
     problem.gamma = problem.gamma.double()
     gen = torch.Generator().manual_seed(0)
     vr = StackedMLP(n_members=2, n_inputs=2, hidden=(4,), tabular=False, generator=gen).double()
