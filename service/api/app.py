@@ -113,9 +113,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_docs(app)
 
     @app.get("/healthz", tags=["health"], summary="The process is up", responses=_example({"status": "ok"}))
-    def healthz() -> dict[str, str]:
-        """Liveness: answers while the process runs."""
-        return {"status": "ok"}
+    async def healthz() -> JSONResponse:
+        """Liveness: answers while the process runs (on the event loop: no thread, no validation)."""
+        return JSONResponse({"status": "ok"})
 
     @app.get(
         "/readyz",
