@@ -66,6 +66,14 @@ class QRows:
             check_invariants=False,
         ).coalesce()
 
+    def to(self, device: torch.device) -> QRows:
+        """These rows with their gather index or sparse matrix on ``device`` (moved in place; returns self)."""
+        if self.index is not None:
+            self.index = self.index.to(device)
+        if self.matrix is not None:
+            self.matrix = self.matrix.to(device)
+        return self
+
     def __call__(self, f: torch.Tensor) -> torch.Tensor:
         """Q (N, A) for the rows, from VR values ``f`` (T, |U|)."""
         flat = f.reshape(-1)

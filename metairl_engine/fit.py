@@ -51,15 +51,23 @@ def fit(
     *,
     progress: ProgressCallback | None = None,
     should_stop: StopCheck | None = None,
+    device: str | torch.device | None = None,
 ) -> FitResult:
-    """Learn a reward per task and the demonstrator's baseline reward; raises InvalidInput or Cancelled."""
+    """Learn a reward per task and the demonstrator's baseline reward; raises InvalidInput or Cancelled.
+
+    ``device`` ("cpu", "cuda", "cuda:1"; None: the CPU) is where the meta-IRL method's tensors live; the
+    result is numpy either way. The networks are initialised on the CPU, so a seed gives the same starting
+    weights on every device. The ``maxent`` method always runs on the CPU (its planning is numpy/scipy).
+    """
     validate_tasks(tasks)
     if config.method == "maxent":
         from metairl_engine.maxent import fit_maxent
 
         return fit_maxent(tasks, config, progress=progress, should_stop=should_stop)
     with retained_heap():
-        return _fit_meta_irl(tasks, config, progress=progress, should_stop=should_stop)
+        return _fit_meta_irl(
+            tasks, config, progress=progress, should_stop=should_stop, device=torch.device(device or "cpu")
+        )
 
 
 def validate_tasks(tasks: Sequence[TaskData]) -> None:
@@ -108,7 +116,11 @@ class _Problem:
 
     An ensemble of K members is one problem of T·K networks: network j = k·T + i plays task i in member k,
     and member k holds out fold k of every task's steps; member k's baseline is row k of the baseline net.
+    Built on the CPU; `to` moves it to the fit's device.
     """
+
+    device = torch.device("cpu")
+    """Where the tensors are (`to` changes it); `inputs` builds its index tensors here."""
 
     def __init__(self, tasks: Sequence[TaskData], config: FitConfig):
         self.n_tasks = len(tasks)
@@ -159,10 +171,23 @@ class _Problem:
         )
         self.blocks = [_Block(self, share, demo_states) for share in shares]
 
+    def to(self, device: torch.device) -> _Problem:
+        """Move every tensor attribute, `QRows` and list of tensors to ``device`` (in place; returns self).
+
+        It walks the attributes instead of naming them, so a tensor added to ``__init__`` moves too.
+        """
+        for name, value in list(vars(self).items()):
+            if isinstance(value, torch.Tensor | QRows):
+                setattr(self, name, value.to(device))
+            elif isinstance(value, list) and all(isinstance(v, torch.Tensor) for v in value):
+                setattr(self, name, [v.to(device) for v in value])
+        self.device = device
+        return self
+
     def inputs(self, states: np.ndarray, *, base: bool = False) -> torch.Tensor:
         """Network inputs of these states: feature rows (the baseline's own if ``base``), or the state
         indices themselves when tabular."""
-        index = torch.from_numpy(states.astype(np.int64))
+        index = torch.from_numpy(states.astype(np.int64)).to(self.device)
         features = self.base_features if base else self.features
         return index if features is None else features[index]
 
@@ -279,7 +304,7 @@ def calibrated_nll(
     Scoring each step at its best temperature judges the reward's ranking of actions, not its scale.
     """
     nll = torch.stack(
-        [F.cross_entropy(t * confidence * q, actions, reduction="none") for t in TEMPERATURES]
+        [F.cross_entropy(t * confidence * q, actions, reduction="none") for t in TEMPERATURES.to(q.device)]
     )  # (len(TEMPERATURES), N)
     return [nll[nll[:, rows].mean(dim=1).argmin(), rows] for rows in groups]
 
@@ -334,7 +359,7 @@ def objective(
         n_tasks=n_tasks,
         confidence=config.confidence,
     )
-    shared = torch.zeros(n_tasks, dtype=f.dtype)
+    shared = torch.zeros(n_tasks, dtype=f.dtype, device=f.device)
     if r_b is not None:
         v = backup(block.q_share(f), kind=config.backup, bgi_k=config.bgi_k)  # V_i(s)       eq. 7
         r = f.reshape(-1)[block.share_f] - problem.gamma[block.share_tasks] * v  # r_i          eq. 8
@@ -398,6 +423,7 @@ def _fit_meta_irl(
     *,
     progress: ProgressCallback | None,
     should_stop: StopCheck | None,
+    device: torch.device,
 ) -> FitResult:
     """The paper's method: joint Adam on all VR networks and the baseline network (Algorithm 1).
 
@@ -406,7 +432,7 @@ def _fit_meta_irl(
     cross-validation: the step kept, and when to stop, is judged by all their held-out folds together.
     """
     started = time.perf_counter()
-    problem = _Problem(tasks, config)
+    problem = _Problem(tasks, config).to(device)
     generator = torch.Generator().manual_seed(config.seed)
     n_inputs = problem.n_states if problem.features is None else problem.features.shape[1]
     tabular = problem.features is None
@@ -416,7 +442,7 @@ def _fit_meta_irl(
         hidden=config.hidden,
         tabular=tabular,
         generator=generator,
-    )
+    ).to(device)
     base_inputs = n_inputs if problem.base_features is None else problem.base_features.shape[1]
     base = StackedMLP(
         n_members=problem.n_members,
@@ -424,7 +450,7 @@ def _fit_meta_irl(
         hidden=config.hidden,
         tabular=tabular,
         generator=generator,
-    )
+    ).to(device)
     params = [*vr.parameters(), *base.parameters()]
     optimiser = torch.optim.Adam(params, lr=config.learning_rate, foreach=True)
 
@@ -517,13 +543,10 @@ def _evaluate(
             else None
         )
         nets = np.repeat(np.arange(problem.n_nets), n_states)
-        q_all = QRows(
-            problem.mdps,
-            nets,
-            np.tile(all_states, problem.n_nets),
-            columns=all_states,
-            n_columns=n_states,
-        )(f).reshape(problem.n_nets, n_states, -1)
+        every_row = QRows(
+            problem.mdps, nets, np.tile(all_states, problem.n_nets), columns=all_states, n_columns=n_states
+        ).to(problem.device)
+        q_all = every_row(f).reshape(problem.n_nets, n_states, -1)
         values = backup(q_all, kind=config.backup, bgi_k=config.bgi_k)
         rewards = (f - problem.gamma[:, None] * values).reshape(n_members, n_tasks, n_states).mean(dim=0)
         values = values.reshape(n_members, n_tasks, n_states).mean(dim=0)
@@ -532,10 +555,10 @@ def _evaluate(
         if baseline is None:
             baseline = rewards.mean(dim=0)
     return FitResult(
-        baseline=baseline.numpy().astype(np.float32),
-        rewards=rewards.numpy().astype(np.float32),
-        values=values.numpy().astype(np.float32),
-        policies=policies.numpy().astype(np.float32),
+        baseline=baseline.cpu().numpy().astype(np.float32),
+        rewards=rewards.cpu().numpy().astype(np.float32),
+        values=values.cpu().numpy().astype(np.float32),
+        policies=policies.cpu().numpy().astype(np.float32),
         history=history,
         best_step=best_step,
         config=config,

@@ -24,14 +24,14 @@ from metairl_engine.config import Sharing
 
 def segment_sum(x: torch.Tensor, task: torch.Tensor, n_tasks: int) -> torch.Tensor:
     """Per-task sums (T,) of row values ``x`` (M,) with task ids ``task`` (M,)."""
-    return torch.zeros(n_tasks, dtype=x.dtype).index_add(0, task, x)
+    return torch.zeros(n_tasks, dtype=x.dtype, device=x.device).index_add(0, task, x)
 
 
 def sharing_loss(diff: torch.Tensor, task: torch.Tensor, *, n_tasks: int, kind: Sharing) -> torch.Tensor:
     """Per-task sharing loss (T,) of the differences ``diff`` = r_i(s) − r_b(s) over rows (M,)."""
     count = segment_sum(torch.ones_like(diff), task, n_tasks)
     if kind == "none":
-        return torch.zeros(n_tasks, dtype=diff.dtype)
+        return torch.zeros(n_tasks, dtype=diff.dtype, device=diff.device)
     if kind == "l2":
         return segment_sum(diff * diff, task, n_tasks) / count
     if kind == "huber":
@@ -45,7 +45,7 @@ def sharing_loss(diff: torch.Tensor, task: torch.Tensor, *, n_tasks: int, kind: 
         centred = diff - (segment_sum(diff, task, n_tasks) / count)[task]
         return torch.sqrt(segment_sum(centred * centred, task, n_tasks) / count + 1e-12)
     # entropy: log n − H(p) with p = softmax of the task's differences, computed stably per task.
-    peak = torch.zeros(n_tasks, dtype=diff.dtype).scatter_reduce(
+    peak = torch.zeros(n_tasks, dtype=diff.dtype, device=diff.device).scatter_reduce(
         0, task, diff.detach(), reduce="amax", include_self=False
     )
     shifted = diff - peak[task]

@@ -4,10 +4,14 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
+from typing import Literal
 
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 MIB = 1024 * 1024
+
+WorkerDevice = Literal["auto", "cpu", "cuda"]
+"""Values of ``METAIRL_WORKER_DEVICE`` (`worker.runner.fit_device` turns one into a torch device)."""
 
 
 class Settings(BaseSettings):
@@ -84,6 +88,10 @@ class Settings(BaseSettings):
 
     worker_concurrency: int = 1
     """Jobs one worker process runs at once; torch threads per job = cores owned / this."""
+
+    worker_device: WorkerDevice = "auto"
+    """Where a worker runs its meta-IRL fits: ``auto`` a CUDA GPU when torch sees one, else the CPU; ``cuda``
+    fails each job with a message saying so when torch sees none (MaxEnt fits always run on the CPU)."""
 
     worker_max_memory_mb: int | None = None
     """Memory (MiB) a worker's jobs may use, shared by those it runs at once: a job whose fit is estimated to

@@ -21,7 +21,7 @@ from metairl_engine.fit import FitResult, TaskData, fit
 from service.jobs.rewards import add_reward
 from service.jobs.status import JobStatus
 from service.jobs.transitions import owned_by, transition
-from service.settings import Settings, get_settings
+from service.settings import Settings, WorkerDevice, get_settings
 from service.store.loaders import load_mdp, load_trajectories
 from service.store.models.demonstrators import Task
 from service.store.models.jobs import Job
@@ -42,6 +42,7 @@ def run_attempt(job_id: str, attempt: int, monitor: Monitor) -> None:
     task_ids: list[str] = []
     try:
         try:
+            device = fit_device(settings.worker_device)
             with make_session() as session:
                 job = session.get_one(Job, job_id)
                 task_ids = list(job.task_ids)
@@ -51,7 +52,9 @@ def run_attempt(job_id: str, attempt: int, monitor: Monitor) -> None:
             torch.set_num_threads(
                 torch_threads(settings.worker_concurrency, size=tasks[0].mdp.n_states * len(tasks))
             )
-            result = fit(tasks, config, progress=monitor.report, should_stop=monitor.should_stop)
+            result = fit(
+                tasks, config, progress=monitor.report, should_stop=monitor.should_stop, device=device
+            )
         finally:
             monitor.close()  # the last progress sample is written before the final status
     except Cancelled:
@@ -80,6 +83,27 @@ def torch_threads(concurrency: int, *, size: int) -> int:
     return max(1, len(os.sched_getaffinity(0)) // max(1, concurrency))
 
 
+class NoCuda(Exception):
+    """``METAIRL_WORKER_DEVICE=cuda`` on a worker where torch sees no CUDA GPU; the message says what to do."""
+
+
+def fit_device(setting: WorkerDevice) -> str:
+    """The torch device for a fit from ``METAIRL_WORKER_DEVICE``: ``auto`` is "cuda" when torch sees a CUDA
+    GPU, else "cpu"; ``cuda`` without one raises `NoCuda`, so the job fails saying why instead of running slowly."""
+    if setting == "cpu":
+        return "cpu"
+    if torch.cuda.is_available():
+        return "cuda"
+    if setting == "cuda":
+        raise NoCuda(
+            "This worker is set to fit on a GPU (METAIRL_WORKER_DEVICE=cuda) but torch sees no CUDA GPU "
+            f"(torch {torch.__version__}, CUDA build: {torch.version.cuda or 'none'}). The operator should give "
+            "the worker a GPU and a CUDA build of torch, or set METAIRL_WORKER_DEVICE=auto or cpu; "
+            "submit the job again once that is done."
+        )
+    return "cpu"
+
+
 def load_tasks(session: Session, task_ids: Sequence[str]) -> list[TaskData]:
     """The engine's view of each task: its MDP and trajectories (MDPs shared by tasks are loaded once)."""
     mdps = {}
@@ -104,7 +128,7 @@ def explain_failure(exc: BaseException, *, task_ids: Sequence[str], settings: Se
             f"The job ran longer than the limit of {settings.job_time_limit_s} s; lower config.max_steps, "
             "fit fewer or smaller tasks, or ask the operator to raise METAIRL_JOB_TIME_LIMIT_S."
         )
-    if isinstance(exc, OverBudget):
+    if isinstance(exc, OverBudget | NoCuda):
         return str(exc)
     if isinstance(exc, MemoryError):
         return (

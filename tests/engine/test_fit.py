@@ -224,3 +224,41 @@ def test_chunked_gradient_step_equals_the_direct_one(sharing: str) -> None:
         assert (direct is None) == (chunked is None) == (sharing == "none" and direct is None)
         if direct is not None:
             assert chunked is not None and torch.allclose(direct, chunked, atol=1e-6)
+
+
+def test_fit_on_the_cpu_device_gives_bit_identical_results_to_the_default() -> None:
+    tasks, _ = terrain_tasks(seed=0, n_tasks=2, n_demos=2)
+    config = FitConfig(max_steps=30)
+    default, on_cpu = fit(tasks, config), fit(tasks, config, device="cpu")
+    for name in ("baseline", "rewards", "values", "policies"):
+        assert isinstance(getattr(on_cpu, name), np.ndarray)
+        assert np.array_equal(getattr(default, name), getattr(on_cpu, name)), name
+    assert [h.loss for h in default.history] == [h.loss for h in on_cpu.history]
+    assert default.best_step == on_cpu.best_step
+
+
+def tensors_in(value: object) -> list[torch.Tensor]:
+    """Every tensor reachable from ``value`` through lists, tuples and the attributes of engine objects."""
+    if isinstance(value, torch.Tensor):
+        return [value]
+    if isinstance(value, list | tuple):
+        return [t for item in value for t in tensors_in(item)]
+    if type(value).__module__.startswith("metairl_engine") and hasattr(value, "__dict__"):
+        return [t for item in vars(value).values() for t in tensors_in(item)]
+    return []
+
+
+@pytest.mark.parametrize("sparse", [False, True])
+def test_moving_a_problem_moves_every_tensor_it_holds_and_the_inputs_it_builds(sparse: bool) -> None:
+    mdp = small_grid(size=3)
+    demos = soft_demos(mdp, bump_reward(3), starts=np.arange(9), length=4, seed=0)
+    if sparse:
+        mdp = as_sparse(mdp)
+    problem = _Problem([task(mdp, demos), task(mdp, demos)], FitConfig(ensemble=2))
+    before = tensors_in(problem)
+    assert len(before) > 10 and all(t.device.type == "cpu" for t in before)
+    moved = problem.to(torch.device("meta"))  # a device every torch build has, standing in for a GPU
+    assert moved is problem
+    after = tensors_in(problem)
+    assert len(after) == len(before) and all(t.device.type == "meta" for t in after)
+    assert problem.inputs(np.arange(4)).device.type == "meta"

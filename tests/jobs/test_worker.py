@@ -12,6 +12,7 @@ import time
 
 import numpy as np
 import pytest
+import torch
 from sqlalchemy import func, select
 
 from service.jobs.queue import CeleryJobQueue
@@ -172,6 +173,25 @@ def test_job_over_the_worker_memory_limit_fails_at_once_and_is_not_retried(
     assert (failed["status"], failed["attempts"], failed["progress"]) == ("failed", 1, None), failed
     assert failed["error"].startswith("The job needs an estimated ")
     assert "more than the 1 MiB this worker allows (METAIRL_WORKER_MAX_MEMORY_MB)" in failed["error"]
+    assert status_events(stack, job_id) == [("queued", 0), ("running", 1), ("failed", 1)]
+    assert reward_rows(stack, job_id) == 0
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="torch sees a CUDA GPU on this machine")
+def test_job_on_a_worker_set_to_cuda_without_a_gpu_fails_at_once_saying_why(
+    stack: Stack, worker: subprocess.Popen[bytes]
+) -> None:
+    client, auth = stack.client, stack.auth
+    demonstrator_id, _ = demonstrated_tasks(client, auth)
+    stack.workers.kill(worker)
+    on_cuda = stack.workers.start(worker_device="cuda")
+    try:
+        job_id = submit(client, auth, demonstrator_id, QUICK)["id"]
+        failed = wait_for(client, auth, job_id)
+    finally:
+        stack.workers.kill(on_cuda)  # the next test's worker has the stack's settings again
+    assert (failed["status"], failed["attempts"], failed["progress"]) == ("failed", 1, None), failed
+    assert "(METAIRL_WORKER_DEVICE=cuda) but torch sees no CUDA GPU" in failed["error"]
     assert status_events(stack, job_id) == [("queued", 0), ("running", 1), ("failed", 1)]
     assert reward_rows(stack, job_id) == 0
 
