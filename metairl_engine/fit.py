@@ -172,15 +172,9 @@ class _Problem:
         self.blocks = [_Block(self, share, demo_states) for share in shares]
 
     def to(self, device: torch.device) -> _Problem:
-        """Move every tensor attribute, `QRows` and list of tensors to ``device`` (in place; returns self).
-
-        It walks the attributes instead of naming them, so a tensor added to ``__init__`` moves too.
-        """
-        for name, value in list(vars(self).items()):
-            if isinstance(value, torch.Tensor | QRows):
-                setattr(self, name, value.to(device))
-            elif isinstance(value, list) and all(isinstance(v, torch.Tensor) for v in value):
-                setattr(self, name, [v.to(device) for v in value])
+        """Move every tensor this problem and its blocks hold to ``device`` (in place; returns self)."""
+        for holder in (self, *self.blocks):
+            _move_tensors(holder, device)
         self.device = device
         return self
 
@@ -223,6 +217,18 @@ class _Block:
         else:
             self.base_states = np.zeros(0, dtype=np.int64)
         self.inputs_u = problem.inputs(self.states_u)
+
+
+def _move_tensors(holder: object, device: torch.device) -> None:
+    """Move every tensor attribute, `QRows` and list of tensors of ``holder`` to ``device``.
+
+    It walks the attributes instead of naming them, so a tensor added to ``__init__`` moves too.
+    """
+    for name, value in list(vars(holder).items()):
+        if isinstance(value, torch.Tensor | QRows):
+            setattr(holder, name, value.to(device))
+        elif isinstance(value, list) and value and all(isinstance(v, torch.Tensor) for v in value):
+            setattr(holder, name, [v.to(device) for v in value])
 
 
 def _all_rows(states: np.ndarray, n_nets: int) -> Steps:
