@@ -170,9 +170,12 @@ def versions(app_dir: Path) -> str:
 
 
 @contextlib.contextmanager
-def database(backend: str, admin_url: str) -> Iterator[tuple[str, Path]]:
-    """A fresh database URL for `backend` and a temporary data folder, both removed afterwards."""
-    data_dir = Path(tempfile.mkdtemp(prefix="metairl-load-"))
+def database(backend: str, admin_url: str, *, label: str = "load") -> Iterator[tuple[str, Path]]:
+    """A fresh database URL for `backend` and a temporary data folder, both removed afterwards.
+
+    On PostgreSQL the database is ``metairl_<label>_<random>``, created through `admin_url` and dropped at the end.
+    """
+    data_dir = Path(tempfile.mkdtemp(prefix=f"metairl-{label}-"))
     try:
         if backend == "sqlite":
             yield f"sqlite:///{data_dir / 'metairl.db'}", data_dir
@@ -182,7 +185,7 @@ def database(backend: str, admin_url: str) -> Iterator[tuple[str, Path]]:
         import psycopg
         from psycopg import sql
 
-        name = f"metairl_load_{secrets.token_hex(4)}"
+        name = f"metairl_{label}_{secrets.token_hex(4)}"
         with psycopg.connect(admin_url, autocommit=True) as admin:
             admin.execute(sql.SQL("CREATE DATABASE {}").format(sql.Identifier(name)))
         try:

@@ -30,7 +30,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -196,10 +196,10 @@ def environment(settings: Settings) -> dict[str, str]:
     }
 
 
-def create_key(env: dict[str, str]) -> str:
-    """Run ``metairl keys create`` (which also migrates the database) and return the key on its last line."""
+def create_key(env: dict[str, str], lab: str = "reliability") -> str:
+    """Run ``metairl keys create`` for `lab` (which also migrates the database) and return the key on its last line."""
     done = subprocess.run(
-        [sys.executable, "-m", "metairl_cli.main", "keys", "create", "--lab", "reliability"],
+        [sys.executable, "-m", "metairl_cli.main", "keys", "create", "--lab", lab],
         cwd=ROOT,
         env=env,
         capture_output=True,
@@ -444,13 +444,19 @@ def main() -> int:
     )
     parser.add_argument("--timeout", type=float, default=180.0, help="seconds the job gets to succeed")
     args = parser.parse_args()
+    return exit_code("reliability", lambda: run(args.out, args.broker, args.max_steps, args.timeout))
+
+
+def exit_code(program: str, action: Callable[[], None]) -> int:
+    """Run `action`: 0, or 1 after printing why on stderr (a command that failed, with its output; a run that did
+    not get to its end; an error answer of the service)."""
     try:
-        run(args.out, args.broker, args.max_steps, args.timeout)
+        action()
     except subprocess.CalledProcessError as exc:
-        print(f"reliability: {exc}\n{exc.stdout}{exc.stderr}", file=sys.stderr)
+        print(f"{program}: {exc}\n{exc.stdout}{exc.stderr}", file=sys.stderr)
         return 1
     except (RunFailed, MetairlError) as exc:
-        print(f"reliability: {exc}", file=sys.stderr)
+        print(f"{program}: {exc}", file=sys.stderr)
         return 1
     return 0
 
