@@ -6,6 +6,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Literal
 
+from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 MIB = 1024 * 1024
@@ -88,6 +89,10 @@ class Settings(BaseSettings):
 
     worker_concurrency: int = 1
     """Jobs one worker process runs at once; torch threads per job = cores owned / this."""
+
+    worker_threads: int = Field(default=0, ge=0)
+    """Torch threads per job; 0: the cores the worker may use (its CPU affinity, capped by a container's CPU
+    quota) divided by ``worker_concurrency``. Set it when several workers share one machine's cores."""
 
     worker_device: WorkerDevice = "auto"
     """Where a worker runs its meta-IRL fits: ``auto`` a CUDA GPU when torch sees one, else the CPU; ``cuda``

@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 import os
 from collections.abc import Sequence
+from pathlib import Path
 
 import torch
 from billiard.exceptions import SoftTimeLimitExceeded
@@ -50,7 +51,11 @@ def run_attempt(job_id: str, attempt: int, monitor: Monitor) -> None:
                 check_memory(session, job_id, task_ids, config, settings)
                 tasks = load_tasks(session, task_ids)
             torch.set_num_threads(
-                torch_threads(settings.worker_concurrency, size=tasks[0].mdp.n_states * len(tasks))
+                torch_threads(
+                    settings.worker_concurrency,
+                    size=tasks[0].mdp.n_states * len(tasks),
+                    threads=settings.worker_threads,
+                )
             )
             result = fit(
                 tasks, config, progress=monitor.report, should_stop=monitor.should_stop, device=device
@@ -76,11 +81,28 @@ when the cores are shared, threads spinning on tiny ops made fits 5-10x slower (
 for a 4-task, 100-state fit beside one busy process)."""
 
 
-def torch_threads(concurrency: int, *, size: int) -> int:
-    """Threads per job: the cores this process may run on, shared by the jobs run at once (one for small fits)."""
+def torch_threads(concurrency: int, *, size: int, threads: int = 0) -> int:
+    """Threads per job: ``threads`` (``METAIRL_WORKER_THREADS``) or, with 0, the cores this process may use
+    shared by the jobs it runs at once; one for small fits either way."""
     if size < SMALL_PROBLEM:
         return 1
-    return max(1, len(os.sched_getaffinity(0)) // max(1, concurrency))
+    return threads or max(1, usable_cores() // max(1, concurrency))
+
+
+CPU_MAX = Path("/sys/fs/cgroup/cpu.max")
+"""cgroup v2's CPU quota of this process's group: "<quota> <period>" in µs, or "max <period>" (no quota)."""
+
+
+def usable_cores(cpu_max: Path = CPU_MAX) -> int:
+    """The cores this process may use: its CPU affinity, capped by its cgroup's CPU quota (what a container's
+    ``cpus:`` sets; it limits CPU time, not affinity, so threads counted from the affinity alone would
+    oversubscribe the quota)."""
+    cores = len(os.sched_getaffinity(0))
+    try:
+        quota, period = cpu_max.read_text().split()[:2]
+        return max(1, min(cores, int(quota) // int(period)))
+    except (OSError, ValueError):  # no cgroup v2 file, or "max": no quota
+        return cores
 
 
 class NoCuda(Exception):
