@@ -29,7 +29,7 @@ import os
 import platform
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -312,6 +312,7 @@ def main() -> None:
 
 VARIANTS: dict[str, FitConfig] = {
     "paper (huber, all states)": CONFIG,
+    "paper, 4 sharing blocks": replace(CONFIG, sharing_blocks=4),
     "sharing on visited states": FitConfig(sharing="huber", sharing_states="visited"),
     "per-task offset (std)": FitConfig(sharing="std"),
     "cell baseline": FitConfig(sharing="huber", baseline_features=(0, 1)),

@@ -25,7 +25,13 @@ def test_a_thread_setting_overrides_the_count_for_large_fits_only() -> None:
 
 @pytest.mark.parametrize(
     ("cpu_max", "expected"),
-    [("max 100000\n", None), ("100000 100000\n", 1), ("150000 100000\n", 1), ("50000 100000\n", 1), ("250000 100000\n", 2)],
+    [
+        ("max 100000\n", None),
+        ("100000 100000\n", 1),
+        ("150000 100000\n", 1),
+        ("50000 100000\n", 1),
+        ("250000 100000\n", 2),
+    ],
 )
 def test_a_cgroup_cpu_quota_caps_the_usable_cores(tmp_path: Path, cpu_max: str, expected: int | None) -> None:
     quota = tmp_path / "cpu.max"
