@@ -16,6 +16,7 @@ A pool process imports torch with its first job, so that job's time includes a f
 Usage::
 
     .venv/bin/python benchmarks/scaleout.py [--workers 1 2] [--jobs 2] [--steps 2000] [--size 16] [--tasks 4]
+        [--threads 0]
 
 Needs PostgreSQL at ``--postgres`` (trust auth) and ``redis-server`` on PATH. Each worker count takes its
 jobs' time plus ~15 s of start-up; everything it starts is stopped, and the database and the data folder
@@ -183,6 +184,7 @@ def measure(n_workers: int, args: argparse.Namespace) -> Row:
             "METAIRL_BROKER_URL": broker,
             "METAIRL_QUEUE_NAME": f"metairl-scaleout-{secrets.token_hex(4)}",
             "METAIRL_WORKER_CONCURRENCY": "1",
+            "METAIRL_WORKER_THREADS": str(args.threads),
         }
         key = create_key(env, lab="scaleout")
         workers: list[Worker] = []
@@ -264,13 +266,16 @@ def main() -> int:
     parser.add_argument("--tasks", type=int, default=4, help="goal tasks per job (default 4)")
     parser.add_argument("--demos", type=int, default=10, help="demonstrations per task (default 10)")
     parser.add_argument("--timeout", type=float, default=300.0, help="seconds the jobs of one row get")
+    parser.add_argument(
+        "--threads", type=int, default=0, help="METAIRL_WORKER_THREADS of each worker (0: automatic)"
+    )
     parser.add_argument("--postgres", default="postgresql://postgres@127.0.0.1:5432/postgres")
     args = parser.parse_args()
     if shutil.which("redis-server") is None:
         sys.exit("scaleout.py needs redis-server on PATH (Debian: apt-get install redis-server)")
     from worker.runner import torch_threads  # the rule the workers apply (imports torch)
 
-    threads = torch_threads(1, size=args.size**2 * args.tasks)
+    threads = torch_threads(1, size=args.size**2 * args.tasks, threads=args.threads)
     print(
         f"{versions()}; {len(os.sched_getaffinity(0))} cores; jobs: {args.size}×{args.size} terrain, "
         f"{args.tasks} tasks × {args.demos} demonstrations, {SHARING} sharing, {args.steps} steps each; "
