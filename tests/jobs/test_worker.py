@@ -157,43 +157,39 @@ def status_events(stack: Stack, job_id: str) -> list[tuple[str, int]]:
     return [(e["status"], e["attempt"]) for e in events if e["kind"] == "status"]
 
 
-def test_job_over_the_worker_memory_limit_fails_at_once_and_is_not_retried(
-    stack: Stack, worker: subprocess.Popen[bytes]
-) -> None:
-    """1 MiB is below any fit's estimate (torch alone needs hundreds): the worker refuses before fitting."""
+def failure_on_a_worker_with(stack: Stack, worker: subprocess.Popen[bytes], **settings: object) -> str:
+    """Run a quick job on a worker started with these settings instead of ``worker``; the job must fail on its
+    first attempt, without retries, progress or rewards: returns its error."""
     client, auth = stack.client, stack.auth
     demonstrator_id, _ = demonstrated_tasks(client, auth)
     stack.workers.kill(worker)
-    limited = stack.workers.start(worker_max_memory_mb=1)
+    other = stack.workers.start(**settings)
     try:
         job_id = submit(client, auth, demonstrator_id, QUICK)["id"]
         failed = wait_for(client, auth, job_id)
     finally:
-        stack.workers.kill(limited)  # the next test's worker has the stack's settings again
+        stack.workers.kill(other)  # the next test's worker has the stack's settings again
     assert (failed["status"], failed["attempts"], failed["progress"]) == ("failed", 1, None), failed
-    assert failed["error"].startswith("The job needs an estimated ")
-    assert "more than the 1 MiB this worker allows (METAIRL_WORKER_MAX_MEMORY_MB)" in failed["error"]
     assert status_events(stack, job_id) == [("queued", 0), ("running", 1), ("failed", 1)]
     assert reward_rows(stack, job_id) == 0
+    return str(failed["error"])
+
+
+def test_job_over_the_worker_memory_limit_fails_at_once_and_is_not_retried(
+    stack: Stack, worker: subprocess.Popen[bytes]
+) -> None:
+    """1 MiB is below any fit's estimate (torch alone needs hundreds): the worker refuses before fitting."""
+    error = failure_on_a_worker_with(stack, worker, worker_max_memory_mb=1)
+    assert error.startswith("The job needs an estimated ")
+    assert "more than the 1 MiB this worker allows (METAIRL_WORKER_MAX_MEMORY_MB)" in error
 
 
 @pytest.mark.skipif(torch.cuda.is_available(), reason="torch sees a CUDA GPU on this machine")
 def test_job_on_a_worker_set_to_cuda_without_a_gpu_fails_at_once_saying_why(
     stack: Stack, worker: subprocess.Popen[bytes]
 ) -> None:
-    client, auth = stack.client, stack.auth
-    demonstrator_id, _ = demonstrated_tasks(client, auth)
-    stack.workers.kill(worker)
-    on_cuda = stack.workers.start(worker_device="cuda")
-    try:
-        job_id = submit(client, auth, demonstrator_id, QUICK)["id"]
-        failed = wait_for(client, auth, job_id)
-    finally:
-        stack.workers.kill(on_cuda)  # the next test's worker has the stack's settings again
-    assert (failed["status"], failed["attempts"], failed["progress"]) == ("failed", 1, None), failed
-    assert "(METAIRL_WORKER_DEVICE=cuda) but torch sees no CUDA GPU" in failed["error"]
-    assert status_events(stack, job_id) == [("queued", 0), ("running", 1), ("failed", 1)]
-    assert reward_rows(stack, job_id) == 0
+    error = failure_on_a_worker_with(stack, worker, worker_device="cuda")
+    assert "(METAIRL_WORKER_DEVICE=cuda) but torch sees no CUDA GPU" in error
 
 
 def test_queued_job_whose_message_was_lost_is_sent_again_and_succeeds(
