@@ -238,7 +238,8 @@ def _all_rows(states: np.ndarray, n_nets: int) -> Steps:
 
 
 def sharing_blocks(mdps: Sequence[MDP], n_blocks: int, *, seed: int) -> list[np.ndarray]:
-    """All states split at random into ``n_blocks`` sorted blocks of about equal size.
+    """All states split at random into ``n_blocks`` sorted blocks of about equal size (fewer when there are
+    fewer groups of states than that).
 
     States with the same successors in every MDP stay in one block (on a velocity grid: the 8 directions of
     a cell), so a block's Q needs f on about as many other states as it holds, not on most of the MDP.
@@ -252,6 +253,7 @@ def sharing_blocks(mdps: Sequence[MDP], n_blocks: int, *, seed: int) -> list[np.
         successor_rows: np.ndarray = np.concatenate(tables, axis=1)
         group = np.unique(successor_rows, axis=0, return_inverse=True)[1].reshape(-1)
     n_groups = int(group.max()) + 1
+    n_blocks = min(n_blocks, n_groups)
     block_of_group = np.empty(n_groups, dtype=np.int64)
     block_of_group[np.random.default_rng(seed).permutation(n_groups)] = (
         np.arange(n_groups) * n_blocks // n_groups

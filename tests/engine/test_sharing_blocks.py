@@ -29,6 +29,15 @@ def test_blocks_partition_the_states_and_keep_the_directions_of_a_cell_together(
     assert (block_of.reshape(8, cells) == block_of[:cells]).all()
 
 
+def test_more_blocks_than_groups_of_states_give_one_block_per_group_and_a_fit_runs() -> None:
+    mdp = grid_mdp(width=3, height=2, velocity=True, gamma=0.9)  # 6 cells: 6 groups of 8 states
+    blocks = sharing_blocks([mdp], 20, seed=0)
+    assert sorted(len(b) for b in blocks) == [8] * 6
+    demos = soft_demos(mdp, np.linspace(0, 1, mdp.n_states), starts=np.array([0, 9]), length=3, seed=0)
+    result = fit([task(mdp, demos)], FitConfig(sharing_blocks=20, max_steps=5))
+    assert len(result.history) == 5 and np.isfinite(result.rewards).all()
+
+
 def test_states_of_a_stochastic_mdp_are_split_one_by_one() -> None:
     mdp = as_sparse(small_grid(size=4))
     blocks = sharing_blocks([mdp], 3, seed=1)
