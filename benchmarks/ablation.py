@@ -8,6 +8,7 @@ so a rerun only computes what is missing. Usage::
     .venv/bin/python benchmarks/ablation.py                      # every variant, both generators
     .venv/bin/python benchmarks/ablation.py --variants default none
     .venv/bin/python benchmarks/ablation.py --table               # print the table from the cache only
+    .venv/bin/python benchmarks/ablation.py --table --choose --variants w0.3 default w3   # choice by held-out NLL
 """
 
 from __future__ import annotations
@@ -73,6 +74,9 @@ VARIANTS: dict[str, dict[str, Any]] = {
     # Sharing blocks (automatic only from 32,768 states): forced on these small worlds to check that the
     # block estimate of the sharing loss costs no accuracy.
     "blocks4": {"sharing_blocks": 4},
+    # The sharing weight, for choosing it per demonstrator by held-out likelihood (`heldout_nll` of each row).
+    "w0.3": {"sharing_weight": 0.3},
+    "w3": {"sharing_weight": 3.0},
 }
 """Named FitConfig overrides; ``default`` is whatever FitConfig() is at the time of the run."""
 
@@ -110,6 +114,33 @@ def table(rows: list[dict[str, Any]], labels: list[str]) -> str:
     return "\n".join(lines)
 
 
+def heldout_choice(rows: list[dict[str, Any]], labels: list[str]) -> str:
+    """Markdown: per generator, the accuracy of picking, per world, the label whose fit has the lowest held-out
+    NLL at its kept step (what a user could do without the true reward) against each label alone."""
+    lines = [
+        "| generator | " + " | ".join(labels) + " | chosen by held-out NLL | best per world (true reward) |"
+    ]
+    lines.append("| --- " * (len(labels) + 3) + "|")
+    for g in GENERATORS:
+        by_world: dict[int, dict[str, dict[str, Any]]] = {}
+        for r in rows:
+            if r["generator"] == g and r["variant"] in labels and not np.isnan(r.get("heldout_nll", np.nan)):
+                by_world.setdefault(r["world"], {})[r["variant"]] = r
+        complete = [fits for fits in by_world.values() if len(fits) == len(labels)]
+        if not complete:
+            continue
+        alone = [np.mean([fits[v]["task_pearson"] for fits in complete]) for v in labels]
+        chosen = [min(fits.values(), key=lambda r: r["heldout_nll"]) for fits in complete]
+        best = np.mean([max(r["task_pearson"] for r in fits.values()) for fits in complete])
+        picks = ", ".join(f"{v} {sum(c['variant'] == v for c in chosen)}×" for v in labels)
+        lines.append(
+            f"| {g} ({len(complete)} worlds) | "
+            + " | ".join(f"{a:.3f}" for a in alone)
+            + f" | {np.mean([c['task_pearson'] for c in chosen]):.3f} ({picks}) | {best:.3f} |"
+        )
+    return "\n".join(lines)
+
+
 def main() -> None:
     """Run what is missing from the cache, then print the table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -123,6 +154,9 @@ def main() -> None:
         "--all", action="store_true", help="table of every label in the cache, earlier revisions too"
     )
     parser.add_argument("--cache", type=Path, default=HERE / "ablation_results.json")
+    parser.add_argument(
+        "--choose", action="store_true", help="also: the variants chosen per world by held-out NLL"
+    )
     args = parser.parse_args()
 
     import torch
@@ -162,6 +196,9 @@ def main() -> None:
     labels = list(dict.fromkeys(r["variant"] for r in wanted))
     print(f"{args.tasks} tasks × {args.demos} demonstrations, {args.worlds} worlds, goal state excluded")
     print(table(wanted, labels))
+    if args.choose:
+        print()
+        print(heldout_choice(wanted, labels))
 
 
 if __name__ == "__main__":

@@ -63,11 +63,14 @@ def run_one(
         pearson(result.rewards[i], s.true_reward, mask=np.arange(world.mdp.n_states) != s.goal)
         for i, s in enumerate(chosen)
     ]
+    # held-out NLL per demonstrated step at the kept step: what a user could choose a config by
+    kept_nll = result.history[result.best_step - 1].heldout_nll
     return {
         "task_pearson": float(np.mean(scores)),
         "baseline_pearson": pearson(result.baseline, -world.cost),
         "steps": len(result.history),
         "kept_step": result.best_step,
+        "heldout_nll": np.nan if kept_nll is None else kept_nll,
         "seconds": time.perf_counter() - started,
         "cpu_seconds": time.process_time() - cpu_started,
     }
