@@ -88,6 +88,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.settings = settings
     app.state.engine = engine
     app.state.sessionmaker = make_sessionmaker(engine)
+    # The key check reads one row (and notes the key's use at most once a minute): statements that commit on
+    # their own spare it the BEGIN and ROLLBACK round trips of a transaction on every request.
+    app.state.key_sessionmaker = make_sessionmaker(engine.execution_options(isolation_level="AUTOCOMMIT"))
     app.state.key_cache = KeyCache(settings.api_key_cache_s)
     app.state.job_queue = CeleryJobQueue(settings)
     install_handlers(app)

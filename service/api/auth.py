@@ -110,9 +110,9 @@ def current_lab(
     """The lab making this request; 401 problem without a valid bearer key.
 
     A key confirmed in the last ``METAIRL_API_KEY_CACHE_S`` seconds is answered from the process's
-    `KeyCache`. Otherwise the key is checked in a short session of its own, which also notes the key's use
-    (`last_used_at`, at most once a minute) and commits that alone: the request's own session and unit of
-    work stay the route's, and the check holds no connection while the route runs."""
+    `KeyCache`. Otherwise the key is checked in a short autocommit session of its own, which also notes the
+    key's use (`last_used_at`, at most once a minute): the request's own session and unit of work stay the
+    route's, and the check holds no connection while the route runs."""
     challenge = {"WWW-Authenticate": "Bearer"}
     if credentials is None:
         raise Unauthorized("Send 'Authorization: Bearer <api key>'.", headers=challenge)
@@ -120,7 +120,7 @@ def current_lab(
     caller = cache.get(credentials.credentials) if cache is not None else None
     if caller is not None:
         return caller
-    with request.app.state.sessionmaker() as own:
+    with request.app.state.key_sessionmaker() as own:
         found = key_and_lab(own, credentials.credentials)
         if found is None:
             raise Unauthorized("The API key is unknown or revoked.", headers=challenge)
