@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from datetime import datetime, timedelta
 from pathlib import Path
 
 from fastapi import FastAPI
@@ -150,3 +151,26 @@ def test_the_api_process_imports_only_what_it_serves(app: FastAPI, settings: Set
         [sys.executable, "-c", code], cwd=REPO, env=env, capture_output=True, text=True, check=True
     )
     assert done.stdout.strip() == "[]", done.stderr
+
+
+def test_a_request_with_a_key_records_its_use_and_the_next_one_after_a_minute_again(
+    app: FastAPI, client: TestClient, api_key: str
+) -> None:
+    key_id = api_key.split("_")[1]
+
+    def last_used() -> object:
+        with app.state.sessionmaker() as session:
+            return session.execute(select(ApiKey.last_used_at).where(ApiKey.id == key_id)).scalar_one()
+
+    headers = {"Authorization": f"Bearer {api_key}"}
+    assert client.get("/v1/mdps", headers=headers).status_code == 200
+    first = last_used()
+    assert first is not None
+    with app.state.sessionmaker() as session:  # as if that use was two minutes ago
+        session.execute(
+            update(ApiKey).where(ApiKey.id == key_id).values(last_used_at=utcnow() - timedelta(minutes=2))
+        )
+        session.commit()
+    assert client.get("/v1/mdps", headers=headers).status_code == 200
+    again = last_used()
+    assert isinstance(again, datetime) and isinstance(first, datetime) and again >= first
