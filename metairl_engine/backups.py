@@ -3,7 +3,7 @@
 `QRows` precomputes, for a fixed list of (task, state) rows, how to read Q(s, ·) off the VR values:
 a GATHER of f[next_state] when every task is deterministic, one torch sparse matmul otherwise. Rows of
 several tasks are batched in one op; the VR values are only ever needed on a subset U of the states
-(``columns`` maps a state to its position in U).
+(``columns`` maps a state to its position in U, one map per task or one shared by all).
 """
 
 from __future__ import annotations
@@ -41,12 +41,15 @@ class QRows:
     ):
         n_actions = mdps[0].n_actions
         self.n_rows, self.n_actions = len(states), n_actions
+        columns = np.broadcast_to(columns, (len(mdps), columns.shape[-1]))  # one map per task, or one for all
         self.index: torch.Tensor | None = None
         self.matrix: torch.Tensor | None = None
         if all(m.next_state is not None for m in mdps):
             table = np.stack([m.next_state for m in mdps if m.next_state is not None])  # (T, S, A)
             nxt = table[tasks, states]  # (N, A)
-            self.index = torch.from_numpy(tasks[:, None] * n_columns + columns[nxt]).reshape(-1)
+            self.index = torch.from_numpy(tasks[:, None] * n_columns + columns[tasks[:, None], nxt]).reshape(
+                -1
+            )
             return
         rows, cols, vals = [], [], []
         for t, mdp in enumerate(mdps):
@@ -56,7 +59,7 @@ class QRows:
             sa = (states[mine, None] * n_actions + np.arange(n_actions)).reshape(-1)
             sub = transition_matrix(mdp)[sa].tocoo()
             rows.append(((mine[:, None] * n_actions + np.arange(n_actions)).reshape(-1))[sub.row])
-            cols.append(t * n_columns + columns[sub.col])
+            cols.append(t * n_columns + columns[t, sub.col])
             vals.append(sub.data)
         idx = torch.from_numpy(np.stack([np.concatenate(rows), np.concatenate(cols)]).astype(np.int64))
         self.matrix = torch.sparse_coo_tensor(

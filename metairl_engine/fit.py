@@ -166,10 +166,9 @@ class _Problem:
         self.train_actions = torch.from_numpy(self.train.actions)
         self.train_tasks = torch.from_numpy(self.train.tasks)
         self.held_actions = torch.from_numpy(self.held.actions)
-        demo_states = np.concatenate(
-            [successors(self.mdps, s.tasks, s.states) for s in (self.train, self.held) if len(s)]
-        )
-        self.blocks = [_Block(self, share, demo_states) for share in shares]
+        demo_tasks = np.concatenate([self.train.tasks, self.held.tasks])
+        demo_states = np.concatenate([self.train.states, self.held.states])
+        self.blocks = [_Block(self, share, demo_tasks, demo_states) for share in shares]
 
     def to(self, device: torch.device) -> _Problem:
         """Move every tensor this problem and its blocks hold to ``device`` (in place; returns self)."""
@@ -187,20 +186,28 @@ class _Problem:
 
 
 class _Block:
-    """What one step evaluates: the states U where f is needed — successors of every demonstrated step, one
-    block of sharing rows (network, state) and those rows' successors — and the indices that read Q, r and
-    r_b off the networks' outputs on U."""
+    """What one step evaluates: per network j the states U_j where f_j is needed — successors of its own
+    demonstrated steps, its rows of one block of sharing rows (network, state) and those rows' successors —
+    and the indices that read Q, r and r_b off the networks' outputs. Each network runs on its own U_j
+    (padded to the longest), not on the union of every network's: on an 80,000-state velocity grid the
+    successors of the other tasks' demonstrations are most of that union."""
 
-    def __init__(self, problem: _Problem, share: Steps, demo_states: np.ndarray):
-        needed = (
-            [demo_states, successors(problem.mdps, share.tasks, share.states), share.states]
-            if len(share)
-            else [demo_states]
-        )
-        self.states_u = np.unique(np.concatenate(needed))
-        columns = np.full(problem.n_states, -1, dtype=np.int64)
-        columns[self.states_u] = np.arange(len(self.states_u))
-        n_u = len(self.states_u)
+    def __init__(self, problem: _Problem, share: Steps, demo_tasks: np.ndarray, demo_states: np.ndarray):
+        per_net = []
+        for j in range(problem.n_nets):
+            mine, shared = demo_tasks == j, share.tasks == j
+            parts = [successors(problem.mdps, demo_tasks[mine], demo_states[mine])] if mine.any() else []
+            if shared.any():
+                parts += [
+                    successors(problem.mdps, share.tasks[shared], share.states[shared]),
+                    share.states[shared],
+                ]
+            per_net.append(np.unique(np.concatenate(parts)) if parts else np.zeros(1, dtype=np.int64))
+        n_u = max(len(u) for u in per_net)
+        self.states_u = np.stack([np.pad(u, (0, n_u - len(u)), mode="edge") for u in per_net])  # (T·K, N)
+        columns = np.full((problem.n_nets, problem.n_states), -1, dtype=np.int64)
+        for j, u in enumerate(per_net):
+            columns[j, u] = np.arange(len(u))
 
         def rows(s: Steps) -> QRows:
             return QRows(problem.mdps, s.tasks, s.states, columns=columns, n_columns=n_u)
@@ -209,14 +216,14 @@ class _Block:
         self.share_tasks = torch.from_numpy(share.tasks)
         if len(share):
             self.q_share = rows(share)
-            self.share_f = torch.from_numpy(share.tasks * n_u + columns[share.states])
+            self.share_f = torch.from_numpy(share.tasks * n_u + columns[share.tasks, share.states])
             self.base_states, base_index = np.unique(share.states, return_inverse=True)
             member = share.tasks // problem.n_tasks  # row k of the baseline network's (K, B) outputs
             self.share_base = torch.from_numpy(member * len(self.base_states) + base_index.astype(np.int64))
             self.inputs_base = problem.inputs(self.base_states, base=True)
         else:
             self.base_states = np.zeros(0, dtype=np.int64)
-        self.inputs_u = problem.inputs(self.states_u)
+        self.inputs_u = problem.inputs(self.states_u)  # (T·K, N, F), or (T·K, N) state indices when tabular
 
 
 def _move_tensors(holder: object, device: torch.device) -> None:
@@ -395,7 +402,7 @@ def gradient_step(
     """
     rows = problem.blocks[block]
     sharing_on = config.sharing != "none"
-    n_u = len(rows.states_u)
+    n_u = rows.states_u.shape[1]
     n_b = len(rows.base_states) if sharing_on else 0
     if max(n_u, n_b) <= chunk:
         f = vr(rows.inputs_u)
@@ -404,7 +411,7 @@ def gradient_step(
         loss.backward()
         return loss.detach(), irl.detach(), shared.detach(), f.detach()
     with torch.no_grad():
-        f = torch.cat([vr(rows.inputs_u[i : i + chunk]) for i in range(0, n_u, chunk)], dim=1)
+        f = torch.cat([vr(rows.inputs_u[:, i : i + chunk]) for i in range(0, n_u, chunk)], dim=1)
         r_b = (
             torch.cat([base(rows.inputs_base[i : i + chunk]) for i in range(0, n_b, chunk)], dim=1)
             if n_b
@@ -417,7 +424,7 @@ def gradient_step(
     loss.backward()
     assert f.grad is not None
     for i in range(0, n_u, chunk):
-        vr(rows.inputs_u[i : i + chunk]).backward(f.grad[:, i : i + chunk])
+        vr(rows.inputs_u[:, i : i + chunk]).backward(f.grad[:, i : i + chunk])
     if r_b is not None:
         assert r_b.grad is not None
         for i in range(0, n_b, chunk):

@@ -56,10 +56,16 @@ class StackedMLP(nn.Module):
             self.biases.append(nn.Parameter(b))
 
     def forward(self, inputs: torch.Tensor) -> torch.Tensor:
-        """Outputs (T, N) for N states: ``inputs`` is (N, F) features, or (N,) state indices when tabular."""
+        """Outputs (T, N) for N states: ``inputs`` is (N, F) features, or (N,) state indices when tabular,
+        shared by the members; or (T, N, F), (T, N): member t's own N states."""
         layers = list(zip(self.weights, self.biases, strict=True))
         w0, b0 = layers[0]
-        h = (w0[:, inputs, :] if self.tabular else torch.matmul(inputs, w0)) + b0
+        if not self.tabular:
+            h = torch.matmul(inputs, w0) + b0
+        elif inputs.dim() == 1:
+            h = w0[:, inputs, :] + b0
+        else:
+            h = w0[torch.arange(len(w0), device=w0.device)[:, None], inputs] + b0
         for w, b in layers[1:]:
             h = torch.baddbmm(b, torch.relu_(h), w)  # in place: h is no saved tensor of its producer
         return h.squeeze(-1)

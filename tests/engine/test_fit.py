@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from metairl_engine import MDP, FitConfig, InvalidInput, Trajectory
-from metairl_engine.backups import QRows
+from metairl_engine.backups import QRows, successors
 from metairl_engine.errors import Cancelled
 from metairl_engine.fit import CONVERGED_STEPS, HeldOutStopper, _Problem, fit, gradient_step, objective
 from metairl_engine.metrics import pearson
@@ -262,3 +262,18 @@ def test_moving_a_problem_moves_every_tensor_it_holds_and_the_inputs_it_builds(s
     after = tensors_in(problem)
     assert len(after) == len(before) and all(t.device.type == "meta" for t in after)
     assert problem.inputs(np.arange(4)).device.type == "meta"
+
+
+def test_each_network_is_evaluated_only_on_the_states_its_own_rows_need() -> None:
+    mdp = small_grid(size=5)
+    reward = bump_reward(5)
+    corners = [np.array([0, 1, 5]), np.array([24, 23, 19])]
+    tasks = [task(mdp, soft_demos(mdp, reward, starts=s, length=2, seed=0)) for s in corners]
+    problem = _Problem(tasks, FitConfig(sharing="none", ensemble=1, holdout_fraction=0.0))
+    (block,) = problem.blocks
+    needed = [
+        set(successors([mdp], np.zeros(len(s), dtype=np.int64), s).tolist())
+        for s in (np.concatenate([tr.states[:-1] for tr in t.trajectories]) for t in tasks)
+    ]
+    assert [set(block.states_u[j].tolist()) for j in range(2)] == needed  # padding repeats an own state
+    assert block.states_u.shape[1] == max(len(n) for n in needed) < len(needed[0] | needed[1])
