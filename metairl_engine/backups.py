@@ -86,16 +86,25 @@ class QRows:
         return torch.sparse.mm(self.matrix, flat.unsqueeze(1)).reshape(self.n_rows, self.n_actions)
 
 
-def successors(mdps: Sequence[MDP], tasks: np.ndarray, states: np.ndarray) -> np.ndarray:
-    """Sorted unique states reachable in one step from the rows (task, state): where Q needs f."""
-    found = []
+def successor_pairs(
+    mdps: Sequence[MDP], tasks: np.ndarray, states: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(task, state) of every state reachable in one step from each row (task, state), repeats included."""
+    found_tasks, found = [np.zeros(0, dtype=np.int64)], [np.zeros(0, dtype=np.int64)]
     for t, mdp in enumerate(mdps):
         mine = states[tasks == t]
         if mine.size == 0:
             continue
         if mdp.next_state is not None:
-            found.append(mdp.next_state[mine].reshape(-1))
+            reached = mdp.next_state[mine].reshape(-1)
         else:
             sa = (mine[:, None] * mdp.n_actions + np.arange(mdp.n_actions)).reshape(-1)
-            found.append(transition_matrix(mdp)[sa].indices)
-    return np.unique(np.concatenate(found)).astype(np.int64)
+            reached = transition_matrix(mdp)[sa].indices
+        found.append(reached.astype(np.int64))
+        found_tasks.append(np.full(len(reached), t, dtype=np.int64))
+    return np.concatenate(found_tasks), np.concatenate(found)
+
+
+def successors(mdps: Sequence[MDP], tasks: np.ndarray, states: np.ndarray) -> np.ndarray:
+    """Sorted unique states reachable in one step from the rows (task, state): where Q needs f."""
+    return np.unique(successor_pairs(mdps, tasks, states)[1])

@@ -23,7 +23,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from metairl_engine.backups import QRows, backup, successors
+from metairl_engine.backups import QRows, backup, successor_pairs
 from metairl_engine.config import FitConfig, ensemble_size, sharing_block_count
 from metairl_engine.demos import validate_trajectories
 from metairl_engine.errors import Cancelled, InvalidInput, Issue, check
@@ -193,21 +193,26 @@ class _Block:
     successors of the other tasks' demonstrations are most of that union."""
 
     def __init__(self, problem: _Problem, share: Steps, demo_tasks: np.ndarray, demo_states: np.ndarray):
-        per_net = []
-        for j in range(problem.n_nets):
-            mine, shared = demo_tasks == j, share.tasks == j
-            parts = [successors(problem.mdps, demo_tasks[mine], demo_states[mine])] if mine.any() else []
-            if shared.any():
-                parts += [
-                    successors(problem.mdps, share.tasks[shared], share.states[shared]),
-                    share.states[shared],
-                ]
-            per_net.append(np.unique(np.concatenate(parts)) if parts else np.zeros(1, dtype=np.int64))
-        n_u = max(len(u) for u in per_net)
-        self.states_u = np.stack([np.pad(u, (0, n_u - len(u)), mode="edge") for u in per_net])  # (T·K, N)
+        # Every (network, state) the step needs, once: sorted by network, then state.
+        nets, reached = successor_pairs(
+            problem.mdps,
+            np.concatenate([demo_tasks, share.tasks]),
+            np.concatenate([demo_states, share.states]),
+        )
+        needed = np.zeros(problem.n_nets * problem.n_states, dtype=bool)  # a mark per (network, state)
+        needed[nets * problem.n_states + reached] = True
+        needed[share.tasks * problem.n_states + share.states] = True
+        keys = np.flatnonzero(needed)
+        net_of, state_of = np.divmod(keys, problem.n_states)
+        counts = np.bincount(net_of, minlength=problem.n_nets)
+        starts = np.cumsum(counts) - counts
+        position = np.arange(len(keys)) - starts[net_of]  # of each state in its network's U_j
+        n_u = int(counts.max())
+        # (T·K, N): row j is U_j, padded with its last state (positions past U_j are never read)
+        self.states_u = np.repeat(state_of[starts + counts - 1][:, None], n_u, axis=1)
+        self.states_u[net_of, position] = state_of
         columns = np.full((problem.n_nets, problem.n_states), -1, dtype=np.int64)
-        for j, u in enumerate(per_net):
-            columns[j, u] = np.arange(len(u))
+        columns[net_of, state_of] = position
 
         def rows(s: Steps) -> QRows:
             return QRows(problem.mdps, s.tasks, s.states, columns=columns, n_columns=n_u)
