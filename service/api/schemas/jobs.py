@@ -56,9 +56,9 @@ class JobIn(BaseModel):
     )
     config: dict[str, Any] | None = Field(
         default=None,
-        description="Fit settings (contract names): method, sharing, sharing_weight, sharing_states, sharing_blocks, backup, "
+        description="Fit settings (contract names): method, sharing, sharing_weight, sharing_states, backup, "
         "bgi_k, confidence, hidden, learning_rate, max_steps, tolerance, seed, and holdout_fraction, patience, "
-        "ensemble, fourier_octaves. "
+        "ensemble, fourier_octaves, sharing_blocks. "
         "Omitted settings take their defaults; an unknown or invalid one is a 422 naming `/config/<field>`.",
     )
 
