@@ -57,15 +57,22 @@ class StackedMLP(nn.Module):
 
     def forward(self, inputs: torch.Tensor) -> torch.Tensor:
         """Outputs (T, N) for N states: ``inputs`` is (N, F) features, or (N,) state indices when tabular,
-        shared by the members; or (T, N, F), (T, N): member t's own N states."""
+        shared by the members; or (T, N, F), (T, N): member t's own N states.
+
+        Tabular indices are gathered with ``index_select``: its backward is a row-wise ``index_add``, several
+        times cheaper than advanced indexing's accumulating ``index_put``.
+        """
         layers = list(zip(self.weights, self.biases, strict=True))
         w0, b0 = layers[0]
-        if not self.tabular:
-            h = torch.matmul(inputs, w0) + b0
+        if not self.tabular:  # the bias enters the product's accumulator: no separate pass over (T, N, H)
+            h = torch.baddbmm(b0, inputs, w0) if inputs.dim() == 3 else torch.matmul(inputs, w0) + b0
         elif inputs.dim() == 1:
-            h = w0[:, inputs, :] + b0
-        else:
-            h = w0[torch.arange(len(w0), device=w0.device)[:, None], inputs] + b0
+            h = w0.index_select(1, inputs) + b0
+        else:  # member t's indices point into its own embedding rows t·S … t·S + S − 1
+            n_members, n_states, width = w0.shape
+            offsets = torch.arange(0, n_members * n_states, n_states, device=w0.device)[:, None]
+            flat = w0.reshape(-1, width).index_select(0, (inputs + offsets).reshape(-1))
+            h = flat.reshape(*inputs.shape, width) + b0
         for w, b in layers[1:]:
             h = torch.baddbmm(b, torch.relu_(h), w)  # in place: h is no saved tensor of its producer
         return h.squeeze(-1)

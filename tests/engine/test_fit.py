@@ -119,6 +119,30 @@ def test_batched_networks_equal_each_network_alone() -> None:
         assert torch.allclose(alone(features)[0], out[t], atol=1e-6)
 
 
+def test_every_input_form_gives_the_same_outputs_and_gradients() -> None:
+    """Tabular indices and one-hot features (an embedding row is a linear layer on a one-hot input), shared
+    by the networks or each network's own: one function, whichever gather or fused product computes it."""
+    states = torch.tensor([[0, 3, 3, 5], [5, 1, 0, 2]])  # each network's own states, one repeated
+    tabular = StackedMLP(n_members=2, n_inputs=6, hidden=(5, 4), tabular=True, generator=torch.Generator())
+    on_features = StackedMLP(
+        n_members=2, n_inputs=6, hidden=(5, 4), tabular=False, generator=torch.Generator()
+    )
+    on_features.load_state_dict(tabular.state_dict())
+
+    def outputs_and_gradients(net: StackedMLP, inputs: torch.Tensor) -> list[torch.Tensor]:
+        net.zero_grad()
+        out = net(inputs)
+        (out * torch.arange(1.0, 1.0 + out.numel()).reshape(out.shape)).sum().backward()
+        return [out.detach(), *(p.grad.clone() for p in net.parameters() if p.grad is not None)]
+
+    one_hot = torch.eye(6)
+    for indices in (states, states[0]):  # (T, N) per network, (N,) shared
+        got = outputs_and_gradients(tabular, indices)
+        expected = outputs_and_gradients(on_features, one_hot[indices])
+        assert len(got) == len(expected) == 7  # outputs, then 3 weights and 3 biases
+        assert all(torch.allclose(g, e, atol=1e-6) for g, e in zip(got, expected, strict=True))
+
+
 def test_deterministic_and_sparse_transitions_give_the_same_q() -> None:
     det, other = small_grid(size=4), small_grid(size=4, gamma=0.5)
     sparse = as_sparse(other)
