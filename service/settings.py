@@ -75,10 +75,11 @@ class Settings(BaseSettings):
     """How long an API process trusts a key the database confirmed; a revoked key is refused within this (0: always ask)."""
 
     db_pool_size: int = 20
-    """PostgreSQL connections each process keeps open (an API process serves up to 40 requests at once)."""
+    """PostgreSQL connections each process keeps open per pool (an API process serves up to 40 requests at once
+    from its thread pool, and has a second, async pool of this size for its hot reads: `service.api.async_db`)."""
 
     db_max_overflow: int = 20
-    """Extra PostgreSQL connections a process may open beyond the pool at a peak (closed when returned)."""
+    """Extra PostgreSQL connections a process may open beyond each pool at a peak (closed when returned)."""
 
     db_pool_recycle_s: int = 1800
     """A pooled PostgreSQL connection older than this (seconds) is replaced before use, never pinged per request."""

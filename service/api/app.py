@@ -9,7 +9,9 @@ from typing import Any
 from fastapi import FastAPI, Request
 from fastapi.responses import JSONResponse
 from sqlalchemy import text
+from sqlalchemy.ext.asyncio import AsyncEngine
 
+from service.api.async_db import async_engine
 from service.api.auth import KeyCache
 from service.api.docs import install_docs
 from service.api.idempotency import Idempotency
@@ -66,14 +68,18 @@ UNAVAILABLE = {"status": "unavailable", "detail": "database unreachable: Operati
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
-    """Build the app: migrate the database, keep sessionmaker and settings on `app.state`, add routes."""
+    """Build the app: migrate the database, keep sessionmaker and settings on `app.state`, add routes (the
+    lifespan adds the async engine of the hot read routes)."""
     settings = settings or get_settings()
     engine = make_engine(settings)
     migrate(engine)
 
     @asynccontextmanager
-    async def lifespan(_app: FastAPI) -> AsyncIterator[None]:
-        yield
+    async def lifespan(_app: FastAPI) -> AsyncIterator[dict[str, AsyncEngine]]:
+        """Per process: the async engine of the hot read routes (`service.api.async_db`) as lifespan state;
+        at shutdown both engines are disposed."""
+        async with async_engine(settings) as state:
+            yield state
         engine.dispose()
 
     app = FastAPI(

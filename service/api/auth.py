@@ -3,34 +3,46 @@
 With ``METAIRL_API_KEY_CACHE_S`` > 0 a key the database has confirmed is remembered in-process that many
 seconds, so a request with a recently seen key costs no database round trip, and a revoked key is refused
 within that time. The default 0 asks the database every time: the next request after a revocation gets 401.
-Unknown or revoked keys are never remembered.
+Unknown or revoked keys are never remembered. The hot read routes check the key in the statement that reads
+their resource (`authorised_row`, on the async engine), so they refuse a revoked key at once either way.
 """
 
 from __future__ import annotations
 
 import hashlib
-import hmac
 import logging
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import Depends, Request, Security
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
-from sqlalchemy import select
+from sqlalchemy import Row, select
 from sqlalchemy.exc import SQLAlchemyError
 from sqlalchemy.orm import Session
 
+from service.api.async_db import connection
 from service.problems import Unauthorized
-from service.store.keys import LAST_USED_RESOLUTION_S, hash_secret, split_key, touch_key
-from service.store.models.base import utcnow
+from service.store.keys import (
+    KeyedQuery,
+    secret_matches,
+    split_key,
+    touch_key,
+    touch_statement,
+    use_is_stale,
+)
 from service.store.models.labs import ApiKey, Lab
 
 log = logging.getLogger(__name__)
 
 bearer = HTTPBearer(auto_error=False, description="An API key from `metairl keys create --lab NAME`.")
+BearerDep = Annotated[HTTPAuthorizationCredentials | None, Security(bearer)]
+"""The request's bearer credentials, if any (documents the scheme in OpenAPI; checking them is the route's)."""
+CHALLENGE = {"WWW-Authenticate": "Bearer"}
+NO_KEY = "Send 'Authorization: Bearer <api key>'."
+BAD_KEY = "The API key is unknown or revoked."
 
 
 @dataclass(frozen=True)
@@ -91,9 +103,7 @@ def key_and_lab(session: Session, key: str) -> tuple[ApiKey, Lab] | None:
     row = session.execute(
         select(ApiKey, Lab).join(Lab, Lab.id == ApiKey.lab_id).where(ApiKey.id == key_id)
     ).first()
-    if row is None or row.ApiKey.revoked_at is not None:
-        return None
-    if not hmac.compare_digest(row.ApiKey.secret_sha256, hash_secret(secret)):
+    if row is None or not secret_matches(row.ApiKey.secret_sha256, row.ApiKey.revoked_at, secret):
         return None
     return row.ApiKey, row.Lab
 
@@ -104,18 +114,15 @@ def lab_for_key(session: Session, key: str) -> Lab | None:
     return None if found is None else found[1]
 
 
-def current_lab(
-    request: Request, credentials: Annotated[HTTPAuthorizationCredentials | None, Security(bearer)]
-) -> Caller:
+def current_lab(request: Request, credentials: BearerDep) -> Caller:
     """The lab making this request; 401 problem without a valid bearer key.
 
     A key confirmed in the last ``METAIRL_API_KEY_CACHE_S`` seconds is answered from the process's
     `KeyCache`. Otherwise the key is checked in a short autocommit session of its own, which also notes the
     key's use (`last_used_at`, at most once a minute): the request's own session and unit of work stay the
     route's, and the check holds no connection while the route runs."""
-    challenge = {"WWW-Authenticate": "Bearer"}
     if credentials is None:
-        raise Unauthorized("Send 'Authorization: Bearer <api key>'.", headers=challenge)
+        raise Unauthorized(NO_KEY, headers=CHALLENGE)
     cache: KeyCache | None = getattr(request.app.state, "key_cache", None)
     caller = cache.get(credentials.credentials) if cache is not None else None
     if caller is not None:
@@ -123,10 +130,9 @@ def current_lab(
     with request.app.state.key_sessionmaker() as own:
         found = key_and_lab(own, credentials.credentials)
         if found is None:
-            raise Unauthorized("The API key is unknown or revoked.", headers=challenge)
+            raise Unauthorized(BAD_KEY, headers=CHALLENGE)
         key, lab = found
-        last = key.last_used_at
-        if last is None or (utcnow() - last).total_seconds() >= LAST_USED_RESOLUTION_S:
+        if use_is_stale(key.last_used_at):
             try:
                 touch_key(own, key.id)
                 own.commit()
@@ -137,6 +143,41 @@ def current_lab(
     if cache is not None:
         cache.put(credentials.credentials, caller)
     return caller
+
+
+async def authorised_row(
+    request: Request, credentials: HTTPAuthorizationCredentials | None, query: KeyedQuery, **params: str
+) -> Row[Any]:
+    """The async counterpart of `current_lab` for the hot read routes: ONE statement checks the bearer key and
+    reads what the route needs, on the process's async engine (`service.api.async_db`).
+
+    `query` is a `key_select` with the route's columns added (outer-joined in the key's lab, so they are NULL
+    when the lab has no such resource), run with the key's id and `params`; the row returned holds them and
+    ``key_lab_id``, the caller's lab. The answers are `current_lab`'s: 401 with the same problem and challenge
+    for a missing, malformed, unknown, revoked or wrong key. The key's use is recorded as there (a second,
+    conditional UPDATE at most once a minute). The database is asked on every request, cache or not, since the
+    key's row comes with the read anyway: a revocation is refused at once. A confirmed key is put in the
+    `KeyCache` for the sync routes.
+    """
+    if credentials is None:
+        raise Unauthorized(NO_KEY, headers=CHALLENGE)
+    parts = split_key(credentials.credentials)
+    if parts is None:
+        raise Unauthorized(BAD_KEY, headers=CHALLENGE)
+    key_id, secret = parts
+    async with connection(request) as db:
+        row = (await db.execute(query, {"key_id": key_id, **params})).first()
+        if row is None or not secret_matches(row.key_secret_sha256, row.key_revoked_at, secret):
+            raise Unauthorized(BAD_KEY, headers=CHALLENGE)
+        if use_is_stale(row.key_last_used_at):
+            try:
+                await db.execute(touch_statement(key_id))
+            except SQLAlchemyError:
+                log.warning("could not record the use of API key %s", key_id, exc_info=True)
+    cache: KeyCache | None = getattr(request.app.state, "key_cache", None)
+    if cache is not None:
+        cache.put(credentials.credentials, Caller(id=row.key_lab_id, name=row.key_lab_name))
+    return row
 
 
 LabDep = Annotated[Caller, Depends(current_lab)]

@@ -12,11 +12,12 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
+from functools import cache
 from types import ModuleType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from sqlalchemy import select
+from sqlalchemy import ColumnElement, Row, and_, bindparam, select
 from sqlalchemy.orm import Session
 
 from metairl_engine.baseline_readout import BASELINE_CAVEAT
@@ -47,15 +48,16 @@ from service.api.schemas.rewards import (
 )
 from service.files import exports, images
 from service.jobs.status import JobStatus
-from service.problems import Conflict, NotFound, Unprocessable
+from service.problems import Conflict, Unprocessable
 from service.store.blobs import blob_sha256, get_array, put_array
 from service.store.ids import new_id
+from service.store.keys import KeyedQuery, in_key_lab, key_select
 from service.store.loaders import load_mdp, load_trajectories, load_true_reward
 from service.store.models.blobs import Blob
 from service.store.models.demonstrators import Demonstration, Demonstrator, Task
 from service.store.models.jobs import Job, Reward
 from service.store.models.mdps import Mdp
-from service.store.owned import get_owned
+from service.store.owned import get_owned, not_found
 
 MEDIA_TYPES: dict[str, str] = {
     "json": "application/json",
@@ -268,76 +270,91 @@ def planning() -> ModuleType:
 
 
 STORED_FORMATS = {"npy", "json"}
-"""Formats made from the stored bytes and names alone (no MDP, no drawing): `stored_download` serves them."""
+"""Formats made from the stored bytes and names alone (no MDP, no drawing): `keyed_stored_file` reads them."""
 
 
-def stored_download(
-    session: Session,
-    reward_id: str,
-    *,
-    lab_id: str,
-    fmt: Format,
-    quantity: Quantity,
-    if_none_match: str | None,
-) -> Download:
-    """`download` for npy and json in one query: the reward (in the caller's lab), the names its file is
-    called by, and the blob's stored SHA-256 and bytes; npy sends the stored float32 bytes behind a header.
-
-    Same answers as `download` (ETag, file name, 404, 409). With ``If-None-Match`` the bytes are left out of
-    the first query and read by a second only when the client's copy is out of date.
-    """
-    if fmt not in STORED_FORMATS:
-        raise ValueError(f"stored_download serves {sorted(STORED_FORMATS)}, not {fmt!r}")
+@cache
+def keyed_stored_file(quantity: Quantity, *, with_data: bool) -> KeyedQuery:
+    """The key check (`service.store.keys.key_select`) and what an npy or json download of reward
+    ``:reward_id`` needs, in one statement: the reward's id and task (``reward_id``, ``reward_task_id``), the
+    names its file is called by (``task_name``, ``demonstrator_name``) and the `quantity` blob's ``blob_id``,
+    ``blob_sha256``, ``blob_dtype``, ``blob_shape`` and, with `with_data`, its bytes ``blob_data``; all NULL
+    unless the reward is in the key's lab. Built once per quantity and with or without the bytes."""
     blob_column = {
         "reward": Reward.reward_blob_id,
         "value": Reward.value_blob_id,
         "policy": Reward.policy_blob_id,
     }[quantity]
-    columns = [
-        Reward.id,
-        Reward.task_id,
-        Task.name,
-        Demonstrator.name,
-        Blob.id,
-        Blob.sha256,
-        Blob.dtype,
-        Blob.shape,
+    columns: list[ColumnElement[Any]] = [
+        Reward.id.label("reward_id"),
+        Reward.task_id.label("reward_task_id"),
+        Task.name.label("task_name"),
+        Demonstrator.name.label("demonstrator_name"),
+        Blob.id.label("blob_id"),
+        Blob.sha256.label("blob_sha256"),
+        Blob.dtype.label("blob_dtype"),
+        Blob.shape.label("blob_shape"),
     ]
-    query = (
-        select(*columns)
-        .join(Job, Job.id == Reward.job_id)
-        .join(Demonstrator, Demonstrator.id == Job.demonstrator_id)
+    if with_data:
+        columns.append(Blob.data.label("blob_data"))
+    return (
+        key_select()
+        .add_columns(*columns)
+        .outerjoin(Reward, and_(Reward.id == bindparam("reward_id"), in_key_lab(Reward.lab_id)))
+        .outerjoin(Job, Job.id == Reward.job_id)
+        .outerjoin(Demonstrator, Demonstrator.id == Job.demonstrator_id)
         .outerjoin(Task, Task.id == Reward.task_id)
         .outerjoin(Blob, Blob.id == blob_column)
-        .where(Reward.id == reward_id, Reward.lab_id == lab_id)
     )
-    found = session.execute(query if if_none_match else query.add_columns(Blob.data)).first()
-    if found is None:
-        raise NotFound(f"No reward with id {reward_id!r}.")
-    rid, task_id, task_name, demonstrator_name, blob_id, sha256, dtype, shape = found[:8]
-    if blob_id is None:
-        raise Conflict(
-            f"Reward {rid} is the baseline, which has no {quantity}; "
-            "ask a task's reward for its value or policy."
-        )
-    etag = exports.etag_for(sha256, rid, fmt, quantity)
-    filename = exports.download_filename(
-        demonstrator=demonstrator_name, task=task_name if task_id else None, quantity=quantity, ext=fmt
-    )
-    disposition = "inline" if fmt in INLINE_FORMATS else "attachment"
-    if etag_matches(if_none_match, etag):
-        return Download(None, MEDIA_TYPES[fmt], filename, disposition, etag)
-    data: bytes = (
-        found[8]
-        if len(found) > 8
-        else session.execute(select(Blob.data).where(Blob.id == blob_id)).scalar_one()
-    )
-    if fmt == "npy":
-        content = exports.npy_from_stored(data, dtype=dtype, shape=shape)
-    else:
+
+
+BLOB_DATA = select(Blob.data).where(Blob.id == bindparam("blob_id"))
+"""The stored bytes of blob ``:blob_id`` (for a stored download whose first read left them out)."""
+
+
+@dataclass(frozen=True)
+class StoredFile:
+    """An npy or json download of a stored array, from a `keyed_stored_file` row (`stored_file` checks it): the
+    same ETag and file name as `download` gives, and the file made from the stored bytes as they are."""
+
+    row: Row[Any]
+    fmt: Format
+    quantity: Quantity
+    etag: str
+    filename: str
+
+    def answer(self, content: bytes | None) -> Download:
+        """The download with `content` (None: a 304, the client's copy has this ETag)."""
+        disposition = "inline" if self.fmt in INLINE_FORMATS else "attachment"
+        return Download(content, MEDIA_TYPES[self.fmt], self.filename, disposition, self.etag)
+
+    def content(self, data: bytes) -> bytes:
+        """The file of the stored bytes `data`: npy sends them behind a header; json lists the values (this
+        costs time on a large array, so the async route runs it in a thread)."""
+        dtype, shape = self.row.blob_dtype, self.row.blob_shape
+        if self.fmt == "npy":
+            return exports.npy_from_stored(data, dtype=dtype, shape=shape)
         values = np.frombuffer(data, dtype=np.dtype(dtype)).reshape(shape)
-        content = exports.to_json(values, reward_id=rid, quantity=quantity).encode()
-    return Download(content, MEDIA_TYPES[fmt], filename, disposition, etag)
+        return exports.to_json(values, reward_id=self.row.reward_id, quantity=self.quantity).encode()
+
+
+def stored_file(found: Row[Any], reward_id: str, *, fmt: Format, quantity: Quantity) -> StoredFile:
+    """The download a `keyed_stored_file` row describes; 404 if the key's lab has no reward `reward_id`, 409
+    for the baseline's (absent) value function or policy, as `download` answers."""
+    if fmt not in STORED_FORMATS:
+        raise ValueError(f"stored files are {sorted(STORED_FORMATS)}, not {fmt!r}")
+    if found.reward_id is None:
+        raise not_found("reward", reward_id)
+    if found.blob_id is None:
+        raise _baseline_has_no(quantity, found.reward_id)
+    filename = exports.download_filename(
+        demonstrator=found.demonstrator_name,
+        task=found.task_name if found.reward_task_id else None,
+        quantity=quantity,
+        ext=fmt,
+    )
+    etag = exports.etag_for(found.blob_sha256, found.reward_id, fmt, quantity)
+    return StoredFile(found, fmt, quantity, etag, filename)
 
 
 def etag_matches(if_none_match: str | None, etag: str) -> bool:
@@ -535,11 +552,15 @@ def _blob_id(row: Reward, quantity: Quantity) -> str:
         quantity
     ]
     if blob_id is None:
-        raise Conflict(
-            f"Reward {row.id} is the baseline, which has no {quantity}; "
-            "ask a task's reward for its value or policy."
-        )
+        raise _baseline_has_no(quantity, row.id)
     return blob_id
+
+
+def _baseline_has_no(quantity: Quantity, reward_id: str) -> Conflict:
+    """The 409 for the value function or policy of a baseline reward, which has neither."""
+    return Conflict(
+        f"Reward {reward_id} is the baseline, which has no {quantity}; ask a task's reward for its value or policy."
+    )
 
 
 def _check_drawable(ctx: RewardContext, quantity: Quantity) -> None:

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from sqlalchemy import select
+from sqlalchemy import and_, bindparam, select
 from sqlalchemy.orm import Session
 
 from service.jobs.status import JobStatus
+from service.store.keys import KeyedQuery, in_key_lab, key_select
 from service.store.models.jobs import Job, JobEvent
 from service.store.owned import get_owned
 from service.store.paging import PageParams, RowPage, paginate
@@ -14,6 +15,15 @@ from service.store.paging import PageParams, RowPage, paginate
 def get_job(session: Session, job_id: str, *, lab_id: str) -> Job:
     """The lab's job, or 404."""
     return get_owned(session, Job, job_id, lab_id=lab_id, what="job")
+
+
+KEYED_JOB: KeyedQuery = (
+    key_select()
+    .add_columns(*Job.__table__.columns)
+    .outerjoin(Job, and_(Job.id == bindparam("job_id"), in_key_lab(Job.lab_id)))
+)
+"""The key check (`service.store.keys.key_select`) and job ``:job_id`` in one statement: every column of the
+job under its own name, all NULL unless the job is in the key's lab."""
 
 
 def list_jobs(

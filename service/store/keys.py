@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import hashlib
+import hmac
 import secrets
 from dataclasses import dataclass
 from datetime import datetime, timedelta
+from typing import Any, TypeAlias
 
-from sqlalchemy import or_, select, update
-from sqlalchemy.orm import Session
+from sqlalchemy import ColumnElement, Select, Update, bindparam, or_, select, update
+from sqlalchemy.orm import InstrumentedAttribute, Session
 
 from service.store.ids import new_id
 from service.store.models.base import utcnow
@@ -17,6 +19,8 @@ from service.store.models.labs import ApiKey, Lab
 KEY_PREFIX = "mirl"
 LAST_USED_RESOLUTION_S = 60
 """`last_used_at` is written at most once a minute per key, so reads do not each cost a write."""
+KeyedQuery: TypeAlias = Select[*tuple[Any, ...]]
+"""A `key_select`, with whatever columns a route adds to it."""
 
 
 def new_key_parts() -> tuple[str, str]:
@@ -63,13 +67,27 @@ def key_is_valid(session: Session, key: str) -> bool:
     if parts is None:
         return False
     row = session.get(ApiKey, parts[0])
-    return row is not None and row.revoked_at is None and row.secret_sha256 == hash_secret(parts[1])
+    return row is not None and secret_matches(row.secret_sha256, row.revoked_at, parts[1])
 
 
-def touch_key(session: Session, key_id: str, *, now: datetime | None = None) -> None:
-    """Set the key's `last_used_at` to now unless it was set less than `LAST_USED_RESOLUTION_S` ago."""
+def secret_matches(secret_sha256: str, revoked_at: datetime | None, secret: str) -> bool:
+    """Whether a stored key (its secret's SHA-256 and revocation time) is live and `secret` is its secret
+    (compared in constant time)."""
+    return revoked_at is None and hmac.compare_digest(secret_sha256, hash_secret(secret))
+
+
+def use_is_stale(last_used_at: datetime | None, *, now: datetime | None = None) -> bool:
+    """Whether a key's recorded use is missing or at least `LAST_USED_RESOLUTION_S` old (so worth a write)."""
+    return (
+        last_used_at is None or ((now or utcnow()) - last_used_at).total_seconds() >= LAST_USED_RESOLUTION_S
+    )
+
+
+def touch_statement(key_id: str, *, now: datetime | None = None) -> Update:
+    """The UPDATE setting the key's `last_used_at` to now unless it was set less than `LAST_USED_RESOLUTION_S`
+    ago (so that concurrent requests write it once)."""
     now = now or utcnow()
-    session.execute(
+    return (
         update(ApiKey)
         .where(
             ApiKey.id == key_id,
@@ -81,6 +99,38 @@ def touch_key(session: Session, key_id: str, *, now: datetime | None = None) -> 
         .values(last_used_at=now)
         .execution_options(synchronize_session=False)
     )
+
+
+def touch_key(session: Session, key_id: str, *, now: datetime | None = None) -> None:
+    """Set the key's `last_used_at` to now unless it was set less than `LAST_USED_RESOLUTION_S` ago."""
+    session.execute(touch_statement(key_id, now=now))
+
+
+def key_select() -> KeyedQuery:
+    """The key bound as ``:key_id`` and its lab, as one row of labelled columns (``key_secret_sha256``,
+    ``key_revoked_at``, ``key_last_used_at``, ``key_lab_id``, ``key_lab_name``); none if there is no such key.
+
+    A route that checks the key and reads a resource in one statement adds the resource to it, outer-joined on
+    `in_key_lab`, so the row says both whether the key is good and the resource, if the key's lab has it. The
+    statement is built once (its parameters bound at execution): building it costs more than running it.
+    """
+    return (
+        select(
+            ApiKey.secret_sha256.label("key_secret_sha256"),
+            ApiKey.revoked_at.label("key_revoked_at"),
+            ApiKey.last_used_at.label("key_last_used_at"),
+            ApiKey.lab_id.label("key_lab_id"),
+            Lab.name.label("key_lab_name"),
+        )
+        .select_from(ApiKey)
+        .join(Lab, Lab.id == ApiKey.lab_id)
+        .where(ApiKey.id == bindparam("key_id"))
+    )
+
+
+def in_key_lab(lab_id: InstrumentedAttribute[str]) -> ColumnElement[bool]:
+    """The join condition that a resource (its `lab_id` column) belongs to the lab of `key_select`'s key."""
+    return lab_id == ApiKey.lab_id
 
 
 @dataclass(frozen=True)

@@ -123,6 +123,12 @@ def test_a_database_outage_is_503_with_retry_after_and_the_api_recovers_by_itsel
         with TestClient(app, raise_server_exceptions=False) as client:
             task = make_task(client, auth)
             add_demonstrations(client, auth, task["id"], TRAJECTORIES)
+            job = created(
+                client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
+            )
+            created(
+                client.get(f"/v1/jobs/{job['id']}", headers=auth), 200
+            )  # pools a connection of the async path
 
             # Uploads run in a loop while the server is stopped without a clean shutdown.
             statuses: list[int] = []
@@ -157,6 +163,8 @@ def test_a_database_outage_is_503_with_retry_after_and_the_api_recovers_by_itsel
                 ("POST", "/v1/demonstrators", {"name": "p"}, {}),
                 ("POST", "/v1/demonstrators", {"name": "p"}, {"Idempotency-Key": "outage-1"}),
                 ("DELETE", f"/v1/tasks/{task['id']}", None, {}),
+                ("GET", f"/v1/jobs/{job['id']}", None, {}),  # the async path (asyncpg)
+                ("GET", "/v1/rewards/rwd_none?format=npy", None, {}),
             ]:
                 _is_unavailable(client.request(method, path, json=body, headers=auth | extra))
             assert client.get("/readyz").status_code == 503
@@ -166,6 +174,7 @@ def test_a_database_outage_is_503_with_retry_after_and_the_api_recovers_by_itsel
             own_postgres.start()
             assert client.get("/readyz").status_code == 200
             created(client.get("/v1/demonstrators", headers=auth), 200)
+            assert created(client.get(f"/v1/jobs/{job['id']}", headers=auth), 200)["id"] == job["id"]
             replayed = client.post(
                 "/v1/demonstrators", json={"name": "p"}, headers=auth | {"Idempotency-Key": "outage-1"}
             )

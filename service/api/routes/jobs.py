@@ -11,6 +11,7 @@ from typing import Annotated
 from fastapi import APIRouter, Header, Query, Request, Response, status
 from fastapi.responses import StreamingResponse
 
+from service.api.auth import BearerDep, authorised_row
 from service.api.deps import JobDep, LabDep, QueueDep, SessionDep, SettingsDep
 from service.api.openapi import PROBLEM_RESPONSES
 from service.api.pagination import Page, PageDep
@@ -25,6 +26,7 @@ from service.problems import BROKER_RETRY_AFTER_S, BrokerUnavailable
 from service.store import jobs
 from service.store.deletion import delete_job as delete_job_rows
 from service.store.deletion import discard_unsent_job
+from service.store.owned import not_found
 
 router = APIRouter(tags=["jobs"], responses=PROBLEM_RESPONSES)
 
@@ -75,9 +77,13 @@ def list_jobs(
 
 
 @router.get("/jobs/{job_id}", summary="Get a job's status and progress", responses=NO_SUCH_JOB)
-def read_job(job: JobDep) -> JobOut:
+async def read_job(job_id: str, request: Request, credentials: BearerDep) -> JobOut:
     """Status (contract values), progress, error when failed, attempts, timestamps and the config used."""
-    return JobOut.of(job)
+    # Polled hard: the key check and the job are one statement on the event loop (service/api/async_db.py).
+    row = await authorised_row(request, credentials, jobs.KEYED_JOB, job_id=job_id)
+    if row.id is None:
+        raise not_found("job", job_id)
+    return JobOut.of(row)
 
 
 SSE_EXAMPLE = (

@@ -6,6 +6,7 @@ from datetime import datetime
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
+from sqlalchemy import Row
 
 from service.api.schemas.common import Resource
 from service.jobs.status import JobStatus
@@ -119,8 +120,8 @@ class JobOut(Resource):
     finished_at: datetime | None
 
     @classmethod
-    def of(cls, job: Job) -> JobOut:
-        """The API view of a job row."""
+    def of(cls, job: Job | Row[Any]) -> JobOut:
+        """The API view of a job row (an ORM object, or a Core row with the jobs table's columns)."""
         progress = None
         if job.step is not None:  # the worker writes all progress columns together
             progress = JobProgress.model_validate({k: getattr(job, k) for k in JobProgress.model_fields})
