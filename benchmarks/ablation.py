@@ -69,6 +69,7 @@ VARIANTS: dict[str, dict[str, Any]] = {
     },
     "ens4-lr02-steps300": {"ensemble": 4, "learning_rate": 0.02, "max_steps": 300},
     "patience100": {"patience": 100},
+    "patience300": {"patience": 300},
     "lr02": {"learning_rate": 0.02},
     "visited": {"sharing_states": "visited"},
     # Sharing blocks (automatic only from 32,768 states): forced on these small worlds to check that the

@@ -83,7 +83,8 @@ class FitConfig:
     fit then runs on all steps to ``max_steps`` or ``tolerance``."""
 
     patience: int = 200
-    """Stop once the held-out NLL has set no new best for this many steps (only with a hold-out; 0: never)."""
+    """Stop once the held-out NLL has made no meaningful progress (a new best by more than one standard error
+    of the last) for this many steps (only with a hold-out; 0: never; `fit.HeldOutStopper`)."""
 
     ensemble: int = 0
     """Members K of the ensemble: each reward is the mean of K fits run side by side as one batch of T·K

@@ -181,15 +181,18 @@ def test_progress_is_reported_every_step_and_best_step_is_kept() -> None:
     assert result.best_step >= 1 + int(np.argmin(np.array([p.heldout_nll for p in seen], dtype=float)))
 
 
-def test_stopper_keeps_steps_within_one_se_and_stops_after_patience_steps_without_a_new_best() -> None:
+def test_stopper_keeps_steps_within_one_se_and_stops_after_patience_steps_without_meaningful_progress() -> (
+    None
+):
     stopper = HeldOutStopper(patience=3)
-    assert stopper.update(1, torch.tensor([1.0, 3.0]))  # best 2.0, standard error 1.414 / √2 = 1.0
+    assert stopper.update(1, torch.tensor([1.0, 3.0]))  # best 2.0, standard error 1.414 / √2 = 1.0: progress
     assert stopper.update(2, torch.tensor([2.4, 3.4]))  # 2.9 ≤ 2.0 + 1.0: kept, not a new best
-    assert stopper.update(3, torch.tensor([1.5, 2.1]))  # new best 1.8, standard error 0.3
-    assert not stopper.update(4, torch.tensor([3.0, 3.2]))  # 3.1 > 1.8 + 0.3
-    assert stopper.update(5, torch.tensor([1.9, 2.1]))  # 2.0 ≤ 2.1: kept on the plateau
-    assert not stopper.should_stop(5)
-    assert stopper.should_stop(6) and stopper.kept_step == 5  # three steps without a new best
+    assert stopper.update(3, torch.tensor([1.5, 2.1]))  # new best 1.8, but not below 2.0 − 1.0: no progress
+    assert stopper.update(4, torch.tensor([0.8, 1.0]))  # 0.9 < 1.0: progress, standard error 0.1
+    assert stopper.update(5, torch.tensor([0.85, 0.87]))  # a new best within 0.1 of 0.9: kept, no progress
+    assert not stopper.update(6, torch.tensor([3.0, 3.2]))  # 3.1 > 0.86 + 0.01
+    assert not stopper.should_stop(6)
+    assert stopper.should_stop(7) and stopper.kept_step == 5  # three steps since the progress at step 4
 
 
 def test_loss_tolerance_stops_only_after_several_flat_steps_in_a_row() -> None:
