@@ -1,10 +1,11 @@
-"""Torch threads per job: small fits get one thread, large ones the cores the worker owns."""
+"""Torch threads per job: small fits get one thread, large ones the cores the worker owns; threads wait passively."""
 
 import os
 from pathlib import Path
 
 import pytest
 
+from worker.main import prepare_environment
 from worker.runner import SMALL_PROBLEM, torch_threads, usable_cores
 
 
@@ -42,3 +43,16 @@ def test_a_cgroup_cpu_quota_caps_the_usable_cores(tmp_path: Path, cpu_max: str, 
 
 def test_without_a_cgroup_quota_file_the_affinity_counts(tmp_path: Path) -> None:
     assert usable_cores(tmp_path / "missing") == len(os.sched_getaffinity(0))
+
+
+def test_the_worker_makes_openmp_threads_wait_passively_unless_told_otherwise(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)
+    monkeypatch.delenv("METAIRL_WORKER_CONCURRENCY", raising=False)
+    prepare_environment(concurrency=3)
+    assert os.environ["OMP_WAIT_POLICY"] == "PASSIVE"
+    assert os.environ["METAIRL_WORKER_CONCURRENCY"] == "3"
+    monkeypatch.setenv("OMP_WAIT_POLICY", "ACTIVE")
+    prepare_environment(concurrency=1)
+    assert os.environ["OMP_WAIT_POLICY"] == "ACTIVE"
