@@ -8,14 +8,15 @@ import os
 def prepare_environment(*, concurrency: int) -> None:
     """Set what the job processes read from the environment, before anything loads torch.
 
-    The concurrency goes to the settings, so torch threads are split by it. OpenMP threads wait passively
-    (unless ``OMP_WAIT_POLICY`` is set): by default each of torch's threads spins at every barrier, so when
-    anything else runs on the cores (the API, another worker, the database) a spinning thread holds a core
-    its sibling needs; one other busy process made an 80,000-state step 4× slower (benchmarks/RESULTS.md,
-    "Waiting threads").
+    The concurrency goes to the settings, so torch threads are split by it. OpenMP threads spin only briefly
+    at a barrier before they sleep (``GOMP_SPINCOUNT`` 3000, unless set): by default each of torch's threads
+    spins for long, so when anything else runs on the cores (the API, another worker, the database) a
+    spinning thread holds a core its sibling needs. With one other busy process an 80,000-state step took
+    0.051 s per task-step spinning and 0.027 with the short spin, and 0.011 / 0.012 on quiet cores
+    (benchmarks/RESULTS.md, "Waiting threads").
     """
     os.environ["METAIRL_WORKER_CONCURRENCY"] = str(concurrency)
-    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    os.environ.setdefault("GOMP_SPINCOUNT", "3000")
 
 
 def run_worker(*, concurrency: int) -> int:
