@@ -12,7 +12,7 @@ import json
 import sys
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime
 from pathlib import Path
 from types import TracebackType
@@ -102,11 +102,28 @@ class JobState:
     error: str | None
     started_at: datetime | None = None
     finished_at: datetime | None = None
+    attempt: int = 0
+    """The attempt the status and step belong to (0 before the first)."""
+    updated_at: datetime | None = None
+    """When the status last changed."""
 
     @property
     def finished(self) -> bool:
         """True once the job succeeded, failed or was cancelled."""
         return self.status in TERMINAL_STATUSES
+
+    def already_shows(self, kind: str | None, event: dict[str, Any]) -> bool:
+        """Whether this snapshot already reflects a job event (``kind`` and its JSON data): an earlier
+        attempt's, a status change before `updated_at`, or a progress step of this attempt at or before
+        `step`. A stream opened on a running job replays such history first."""
+        attempt = int(event.get("attempt", 0))
+        if attempt != self.attempt:
+            return attempt < self.attempt
+        if kind == "status":
+            at = _when(event.get("at"))
+            return at is not None and self.updated_at is not None and at <= self.updated_at
+        step = event.get("step")
+        return kind == "progress" and step is not None and self.step is not None and step <= self.step
 
 
 @dataclass(frozen=True)
@@ -352,13 +369,19 @@ class Client:
                         check_deadline(state)
                         last_id = event_id or last_id
                         failures = 0
+                        if state.already_shows(kind, data):
+                            continue  # history the stream replays: drawing it would move the bar back
+                        attempt = int(data.get("attempt", state.attempt))
                         if kind == "progress":
-                            state = JobState(
-                                state.id, state.status, data.get("step"), data.get("max_steps"), state.error
+                            state = replace(
+                                state, step=data.get("step"), max_steps=data.get("max_steps"), attempt=attempt
                             )
                         elif kind == "status":
-                            state = JobState(
-                                state.id, str(data.get("status")), state.step, state.max_steps, state.error
+                            state = replace(
+                                state,
+                                status=str(data.get("status")),
+                                attempt=attempt,
+                                updated_at=_when(data.get("at")),
                             )
                         if kind is not None:
                             draw(state)
@@ -487,6 +510,8 @@ def _job_state(body: dict[str, Any]) -> JobState:
         error=body.get("error"),
         started_at=_when(body.get("started_at")),
         finished_at=_when(body.get("finished_at")),
+        attempt=int(body.get("attempts") or 0),
+        updated_at=_when(body.get("updated_at")),
     )
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from datetime import UTC, datetime
 from typing import Any
 
 from fastapi import FastAPI
@@ -215,3 +216,27 @@ def test_client_wait_follows_the_stream_and_falls_back_to_polling(
 
     mocked = Client(httpx.Client(transport=httpx.MockTransport(old_server), base_url="http://metairl.test"))
     assert mocked.wait("job_1", poll_s=0.01, progress=False).status == "succeeded"
+
+
+def test_client_wait_on_a_running_job_does_not_draw_the_history_its_snapshot_already_shows() -> None:
+    from metairl_client import JobState
+
+    snapshot = JobState(
+        "job_x", "running", 337, 1000, None, attempt=2, updated_at=datetime(2026, 1, 5, 10, 5, tzinfo=UTC)
+    )
+    before, after = "2026-01-05T10:04:59Z", "2026-01-05T10:05:01Z"
+    history = [
+        ("status", {"attempt": 1, "status": "running", "at": after}),  # an earlier attempt
+        ("progress", {"attempt": 1, "step": 900}),
+        ("status", {"attempt": 2, "status": "queued", "at": before}),  # this attempt, before the snapshot
+        ("progress", {"attempt": 2, "step": 12}),
+        ("progress", {"attempt": 2, "step": 337}),
+    ]
+    assert all(snapshot.already_shows(kind, data) for kind, data in history)
+    news = [
+        ("progress", {"attempt": 2, "step": 338}),
+        ("status", {"attempt": 2, "status": "succeeded", "at": after}),
+        ("status", {"attempt": 3, "status": "running", "at": after}),  # a retry after this snapshot
+        ("progress", {"attempt": 3, "step": 1}),
+    ]
+    assert not any(snapshot.already_shows(kind, data) for kind, data in news)
