@@ -225,7 +225,7 @@ def test_client_wait_on_a_running_job_does_not_draw_the_history_its_snapshot_alr
         "job_x", "running", 337, 1000, None, attempt=2, updated_at=datetime(2026, 1, 5, 10, 5, tzinfo=UTC)
     )
     before, after = "2026-01-05T10:04:59Z", "2026-01-05T10:05:01Z"
-    history = [
+    history: list[tuple[str, dict[str, Any]]] = [
         ("status", {"attempt": 1, "status": "running", "at": after}),  # an earlier attempt
         ("progress", {"attempt": 1, "step": 900}),
         ("status", {"attempt": 2, "status": "queued", "at": before}),  # this attempt, before the snapshot
@@ -233,7 +233,7 @@ def test_client_wait_on_a_running_job_does_not_draw_the_history_its_snapshot_alr
         ("progress", {"attempt": 2, "step": 337}),
     ]
     assert all(snapshot.already_shows(kind, data) for kind, data in history)
-    news = [
+    news: list[tuple[str, dict[str, Any]]] = [
         ("progress", {"attempt": 2, "step": 338}),
         ("status", {"attempt": 2, "status": "succeeded", "at": after}),
         ("status", {"attempt": 3, "status": "running", "at": after}),  # a retry after this snapshot
