@@ -20,8 +20,8 @@ from metairl_engine.planning import transition_matrix
 
 def backup(q: torch.Tensor, *, kind: Backup, bgi_k: float) -> torch.Tensor:
     """V(s) from Q(s, ·) over the last axis: max (eq. 7), logsumexp (MaxEnt) or (1/k)·logsumexp(k·Q) (BGI)."""
-    if kind == "max":
-        return q.amax(dim=-1)
+    if kind == "max":  # max, not amax: its backward scatters to one argmax instead of sharing among ties
+        return q.max(dim=-1).values
     if kind == "logsumexp":
         return torch.logsumexp(q, dim=-1)
     return torch.logsumexp(bgi_k * q, dim=-1) / bgi_k
@@ -78,10 +78,14 @@ class QRows:
         return self
 
     def __call__(self, f: torch.Tensor) -> torch.Tensor:
-        """Q (N, A) for the rows, from VR values ``f`` (T, |U|)."""
+        """Q (N, A) for the rows, from VR values ``f`` (T, |U|).
+
+        ``index_select``, not ``flat[index]``: its backward is an ``index_add``, several times cheaper than the
+        accumulating ``index_put`` of advanced indexing.
+        """
         flat = f.reshape(-1)
         if self.index is not None:
-            return flat[self.index].reshape(self.n_rows, self.n_actions)
+            return flat.index_select(0, self.index).reshape(self.n_rows, self.n_actions)
         assert self.matrix is not None
         return torch.sparse.mm(self.matrix, flat.unsqueeze(1)).reshape(self.n_rows, self.n_actions)
 

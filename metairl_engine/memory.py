@@ -181,7 +181,7 @@ def fit_memory(
         # Q, its log-softmax or max and its gradient; the backward of Q's gather sorts a copy of its index.
         + (step_rows + share_rows) * a * (3 * FLOAT + 2 * entry)
         + share_rows * 10 * FLOAT  # V, r, r − r_b, the sharing loss's terms and their gradients
-        + held * (TEMPERATURES + 2 * a) * FLOAT  # the calibrated held-out NLL
+        + held * (2 * TEMPERATURES * a + TEMPERATURES) * FLOAT  # the calibrated NLL: t·b·Q, its log-softmax
     )
     adam = 2 * nets * largest_weight * FLOAT  # Adam's temporaries of the largest weight, after the backward
     training = max(step, adam)
