@@ -27,10 +27,14 @@ from metairl_engine import FitConfig  # noqa: E402
 
 
 def main() -> None:
-    """Time one default fit per world and print a row each (CPU s, wall s, steps, accuracy), then the means."""
+    """Time one default fit per world (``--seed`` aside) and print a row each (CPU s, wall s, steps, accuracy),
+    then the means."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repo", type=int, default=3, help="worlds 0 … N−1 of the repo's generator")
     parser.add_argument("--frozen", type=int, default=2, help="worlds 0 … N−1 of the frozen generator")
+    parser.add_argument(
+        "--seed", type=int, default=0, help="FitConfig.seed: initial weights and hold-out folds"
+    )
     args = parser.parse_args()
     torch.set_num_threads(1)
     print(f"engine: {Path(metairl_engine.__file__).parent}")
@@ -41,7 +45,7 @@ def main() -> None:
         rows = []
         for w in range(count):
             world, sims = make(w)
-            row = run_one(world, sims, n_tasks=8, n_demos=3, config=FitConfig())
+            row = run_one(world, sims, n_tasks=8, n_demos=3, config=FitConfig(seed=args.seed))
             rows.append(row)
             print(
                 f"{name} world {w}: {row['cpu_seconds']:.1f} CPU s, {row['seconds']:.1f} s, "
