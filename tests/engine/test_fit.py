@@ -143,6 +143,28 @@ def test_every_input_form_gives_the_same_outputs_and_gradients() -> None:
         assert all(torch.allclose(g, e, atol=1e-6) for g, e in zip(got, expected, strict=True))
 
 
+@pytest.mark.parametrize("hidden", [(), (5,), (5, 4)])
+def test_stacked_networks_compute_each_member_s_plain_mlp(hidden: tuple[int, ...]) -> None:
+    """The bias as a column of ones and the width-1 last layer as a product and a sum compute, per member,
+    relu(x·W + b) layer by layer, on shared (N, F) and per-network (T, N, F) inputs."""
+    net = StackedMLP(
+        n_members=3, n_inputs=2, hidden=hidden, tabular=False, generator=torch.Generator().manual_seed(1)
+    )
+    x = torch.rand(3, 7, 2, generator=torch.Generator().manual_seed(2))
+
+    def plain(member: int, inputs: torch.Tensor) -> torch.Tensor:
+        h = inputs
+        for layer, (w, b) in enumerate(zip(net.weights, net.biases, strict=True)):
+            h = h @ w[member] + b[member, 0]
+            if layer < len(hidden):
+                h = torch.relu(h)
+        return h.squeeze(-1)
+
+    expected = torch.stack([plain(t, x[t]) for t in range(3)])
+    assert torch.allclose(net(x), expected, atol=1e-6)
+    assert torch.allclose(net(x[0]), torch.stack([plain(t, x[0]) for t in range(3)]), atol=1e-6)
+
+
 def test_deterministic_and_sparse_transitions_give_the_same_q() -> None:
     det, other = small_grid(size=4), small_grid(size=4, gamma=0.5)
     sparse = as_sparse(other)
