@@ -222,6 +222,7 @@ class _Block:
         if len(share):
             self.q_share = rows(share)
             self.share_f = torch.from_numpy(share.tasks * n_u + columns[share.tasks, share.states])
+            self.share_gamma = problem.gamma[self.share_tasks]  # γ of each sharing row's network
             self.base_states, base_index = np.unique(share.states, return_inverse=True)
             member = share.tasks // problem.n_tasks  # row k of the baseline network's (K, B) outputs
             self.share_base = torch.from_numpy(member * len(self.base_states) + base_index.astype(np.int64))
@@ -387,8 +388,7 @@ def objective(
     shared = torch.zeros(n_tasks, dtype=f.dtype, device=f.device)
     if r_b is not None:
         v = backup(block.q_share(f), kind=config.backup, bgi_k=config.bgi_k)  # V_i(s)       eq. 7
-        gamma = problem.gamma.index_select(0, block.share_tasks)
-        r = f.reshape(-1).index_select(0, block.share_f) - gamma * v  # r_i                eq. 8
+        r = f.reshape(-1).index_select(0, block.share_f) - block.share_gamma * v  # r_i      eq. 8
         diff = r - r_b.reshape(-1).index_select(0, block.share_base)
         shared = sharing_loss(diff, block.share_tasks, n_tasks=n_tasks, kind=config.sharing)
     loss = (irl + config.sharing_weight * shared).mean()  # eq. 1, averaged over tasks

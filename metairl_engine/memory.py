@@ -178,7 +178,7 @@ def fit_memory(
         activations(nets, first)
         + (activations(k, 0 if tabular else base_width) if sharing else 0)
         + 2 * (nets + k) * s * FLOAT  # f and r_b with their gradients
-        # Q, its log-softmax or max and its gradient; the backward of Q's gather sorts a copy of its index.
+        # Q, its log-softmax or max and its gradient; two index-sized buffers for the gather's backward.
         + (step_rows + share_rows) * a * (3 * FLOAT + 2 * entry)
         + share_rows * 10 * FLOAT  # V, r, r − r_b, the sharing loss's terms and their gradients
         + held * (2 * TEMPERATURES * a + TEMPERATURES) * FLOAT  # the calibrated NLL: t·b·Q, its log-softmax
