@@ -2,7 +2,9 @@
 
 For each MDP size, 4 tasks × 3 demonstrations per world, fitted by
 
-1. this engine's default (``fit(tasks, FitConfig())``): time per task = fit time / number of tasks;
+1. this engine's default (``fit(tasks, FitConfig())``): time per task = fit time / number of tasks; with
+   ``--capped-steps N …`` also the default stopped after at most N steps (at 1,024 states), which shows how
+   soon the engine's rewards pass imitation's in accuracy;
 2. this engine's ``maxent`` reference solver (``FitConfig(method="maxent")``), one task at a time;
 3. HumanCompatibleAI imitation's finite-horizon MCE IRL (``imitation.algorithms.mce_irl.MCEIRL``) on a
    ``seals.base_envs.TabularModelPOMDP`` with a dense (S, A, S) transition matrix, one task at a time, in a
@@ -37,7 +39,7 @@ replaced, others kept), the table to stdout. Commands::
     python3 -m venv .venv-imitation && .venv-imitation/bin/pip install "torch==2.13.0" "imitation==1.0.1"
     OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/versus.py
     # or one size at a time (how versus_results.json was made, imitation from another venv):
-    OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/versus.py --sizes 1000 --imitation-python PATH/TO/bin/python
+    OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/versus.py --sizes 1000 --capped-steps 10 20 40 --imitation-python PATH/TO/bin/python
     OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/versus.py --sizes 10000 80000 --imitation-python PATH/TO/bin/python
 """
 
@@ -74,7 +76,12 @@ HORIZON_PER_SIDE = 2
 """imitation's finite horizon, in grid sides (the demonstrations' cap is 3 sides)."""
 THREAD_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 SIZES = {1000: "1,024 (32×32 terrain)", 10000: "10,000 (100×100 terrain)", 80000: "80,000 (100×100×8 motion)"}
-METHODS = ("engine default", "engine maxent", "imitation MCE IRL")
+IMITATION = "imitation MCE IRL"
+
+
+def capped(steps: int) -> str:
+    """The method name of this engine's default capped at ``steps`` optimisation steps."""
+    return f"engine default, ≤ {steps} steps"
 
 
 @dataclass(frozen=True)
@@ -282,6 +289,8 @@ def measure(size: int, args: argparse.Namespace) -> list[dict[str, Any]]:
 
     small = size == 1000
     methods: list[tuple[str, FitConfig]] = [("engine default", FitConfig())]
+    if small:
+        methods += [(capped(n), FitConfig(max_steps=n)) for n in args.capped_steps]
     if small or args.maxent_large:
         methods.append(("engine maxent", FitConfig(method="maxent")))
     rows = []
@@ -294,20 +303,20 @@ def measure(size: int, args: argparse.Namespace) -> list[dict[str, Any]]:
         gb = dense_gb(problem)
         if gb > args.max_dense_gb:
             note = f"not run: needs {gb:.1f} GB dense transitions (limit {args.max_dense_gb:g} GB)"
-            rows.append({**base, "method": "imitation MCE IRL", "not_run": note})
+            rows.append({**base, "method": IMITATION, "not_run": note})
         elif not args.imitation_python.exists():
             note = f"not run: no imitation python at {args.imitation_python.name} (see the docstring)"
-            rows.append({**base, "method": "imitation MCE IRL", "not_run": note})
+            rows.append({**base, "method": IMITATION, "not_run": note})
         else:
             out = run_imitation(problem, args.imitation_python, args.imitation_iterations)
-            rows.append({**base, "method": "imitation MCE IRL", **out, "load_average": os.getloadavg()[0]})
+            rows.append({**base, "method": IMITATION, **out, "load_average": os.getloadavg()[0]})
         print(f"{size} world {problem.world} imitation: {rows[-1]}", file=sys.stderr, flush=True)
     return rows
 
 
 def notes(method: str, ran: list[dict[str, Any]]) -> str:
     """The table's notes for one size and method: steps or iterations per world, imitation's settings."""
-    if method == "engine default":
+    if method.startswith("engine default"):
         return "steps (kept) per world: " + ", ".join(f"{r['steps']} ({r['kept_step']})" for r in ran)
     if method == "engine maxent":
         return "L-BFGS iterations per world (all tasks): " + ", ".join(str(r["steps"]) for r in ran)
@@ -329,7 +338,7 @@ def table(rows: list[dict[str, Any]]) -> str:
     speedups = []
     for size, label in SIZES.items():
         per_task: dict[str, tuple[float, float]] = {}
-        for method in METHODS:
+        for method in dict.fromkeys(r["method"] for r in rows if r["size"] == size):  # in order of first row
             sel = [r for r in rows if r["size"] == size and r["method"] == method]
             ran = [r for r in sel if "pearson" in r]
             if not sel:
@@ -343,14 +352,13 @@ def table(rows: list[dict[str, Any]]) -> str:
             rho = np.concatenate([r["pearson"] for r in ran])
             per_task[method] = (wall, cpu)
             lines.append(
-                f"| {label} | {method} | {tasks} | {wall:.1f} ({cpu:.1f}) | {rho.mean():.3f} ± {rho.std():.3f} "
+                f"| {label} | {method} | {tasks} | {wall:.2f} ({cpu:.2f}) | {rho.mean():.3f} ± {rho.std():.3f} "
                 f"| {notes(method, ran)} |"
             )
-        if "imitation MCE IRL" in per_task:
-            (iw, ic) = per_task["imitation MCE IRL"]
-            for method in ("engine default", "engine maxent"):
-                if method in per_task:
-                    w, c = per_task[method]
+        if IMITATION in per_task:
+            (iw, ic) = per_task[IMITATION]
+            for method, (w, c) in per_task.items():
+                if method != IMITATION:
                     speedups.append(f"- {label}: {method} vs imitation: {iw / w:.1f}× (CPU {ic / c:.1f}×)")
     if speedups:
         lines += ["", "Speed-up in time per task (imitation's time / this engine's time; target ≥ 50×):"]
@@ -364,6 +372,13 @@ def main() -> None:
     parser.add_argument("--sizes", type=int, nargs="*", default=list(SIZES), choices=list(SIZES))
     parser.add_argument(
         "--worlds", type=int, default=3, help="worlds at 1,024 states (1 at the larger sizes)"
+    )
+    parser.add_argument(
+        "--capped-steps",
+        type=int,
+        nargs="*",
+        default=[],
+        help="at 1,024 states also fit with max_steps capped at each N (how soon the engine passes imitation)",
     )
     parser.add_argument("--maxent-large", action="store_true", help="run maxent at 10,000 and 80,000 too")
     parser.add_argument("--imitation-python", type=Path, default=ROOT / ".venv-imitation/bin/python")
