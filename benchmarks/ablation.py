@@ -1,11 +1,12 @@
-"""Ablation: each candidate change to the default config, measured one by one on BOTH terrain generators.
+"""Ablation: each candidate change to the default config, measured one by one on every terrain generator.
 
 The setting is the one issue 13 targets: 8 tasks × 3 demonstrations, goal state excluded, 10 worlds of the
-repo's generator (`metairl_engine/terrain.py`, tuned on) and of the frozen one (`frozen_terrain.py`, never
-tuned on). A variant is a named set of FitConfig overrides; every fit is cached in `ablation_results.json`
+repo's generator (`metairl_engine/terrain.py`, tuned on), of the frozen one (`frozen_terrain.py`, never
+tuned on) and of ``slip``: the repo's worlds with stochastic moves (`slippery_world_and_tasks`, added in
+session 10, never tuned on). A variant is a named set of FitConfig overrides; every fit is cached in `ablation_results.json`
 so a rerun only computes what is missing. Usage::
 
-    .venv/bin/python benchmarks/ablation.py                      # every variant, both generators
+    .venv/bin/python benchmarks/ablation.py                      # every variant, every generator
     .venv/bin/python benchmarks/ablation.py --variants default none
     .venv/bin/python benchmarks/ablation.py --table               # print the table from the cache only
     .venv/bin/python benchmarks/ablation.py --table --choose --variants w0.3 default w3   # choice by held-out NLL
@@ -32,11 +33,27 @@ from accuracy import REVISION, run_one, world_and_tasks  # noqa: E402
 from frozen_terrain import frozen_world_and_tasks  # noqa: E402
 
 from metairl_engine import FitConfig  # noqa: E402
-from metairl_engine.terrain import SimTask, World  # noqa: E402
+from metairl_engine.grids import grid_mdp  # noqa: E402
+from metairl_engine.terrain import SimTask, World, make_tasks, make_world  # noqa: E402
+
+SLIP = 0.2
+"""The ``slip`` generator's probability that a step goes where another move (uniformly chosen) leads."""
+
+
+def slippery_world_and_tasks(index: int) -> tuple[World, list[SimTask]]:
+    """The repo's world ``index`` with stochastic moves (slip SLIP): its tasks' demonstrator plans for the
+    slips and its demonstrations contain them; never tuned on (dynamics unlike either generator's)."""
+    world = make_world(size=16, n_hills=6, seed=index)
+    world = replace(
+        world, mdp=grid_mdp(width=16, height=16, moves=8, stay=True, gamma=world.mdp.gamma, slip=SLIP)
+    )
+    return world, make_tasks(world, n_tasks=16, n_demos=10, seed=1000 + index)
+
 
 GENERATORS: dict[str, Callable[[int], tuple[World, list[SimTask]]]] = {
     "repo": world_and_tasks,
     "frozen": frozen_world_and_tasks,
+    "slip": slippery_world_and_tasks,
 }
 
 VARIANTS: dict[str, dict[str, Any]] = {
@@ -94,9 +111,12 @@ def key_of(variant: str) -> str:
 
 def table(rows: list[dict[str, Any]], labels: list[str]) -> str:
     """Markdown: per label, task-reward Pearson (goal excluded) mean ± std over worlds on each generator."""
+    names = " / ".join(GENERATORS)
     lines = [
-        "| variant | repo generator | frozen generator | baseline vs −cost (repo / frozen) | CPU s/fit (repo / frozen) |",
-        "| --- | --- | --- | --- | --- |",
+        "| variant | "
+        + " | ".join(f"{g} generator" for g in GENERATORS)
+        + f" | baseline vs −cost ({names}) | CPU s/fit ({names}) |",
+        "| --- " * (len(GENERATORS) + 3) + "|",
     ]
     for v in labels:
         cells, base, secs = [], [], []
@@ -111,7 +131,7 @@ def table(rows: list[dict[str, Any]], labels: list[str]) -> str:
             cells.append(f"{tp.mean():.3f} ± {tp.std():.3f} (n={len(sel)})")
             base.append(f"{np.mean([r['baseline_pearson'] for r in sel]):.3f}")
             secs.append(f"{np.mean([r.get('cpu_seconds', r['seconds']) for r in sel]):.1f}")
-        lines.append(f"| {v} | {cells[0]} | {cells[1]} | {' / '.join(base)} | {' / '.join(secs)} |")
+        lines.append(f"| {v} | {' | '.join(cells)} | {' / '.join(base)} | {' / '.join(secs)} |")
     return "\n".join(lines)
 
 

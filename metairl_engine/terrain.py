@@ -3,7 +3,7 @@
 A world is a size×size grid (8 compass moves + stay) whose cost is a sum of hills, each a peak decaying
 exponentially with distance. Task i's true reward is −cost plus a bonus at its goal state; the demonstrator
 follows the soft-optimal policy of that reward (soft value iteration) from random starts until it reaches
-the goal or a step cap. numpy only and seeded: the demo CLI and the service tests generate data with it.
+the goal or a step cap. numpy and scipy only, seeded: the demo CLI and the service tests generate data with it.
 """
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from metairl_engine.demos import Trajectory
 from metairl_engine.grids import grid_mdp
@@ -86,7 +87,7 @@ def make_tasks(
             p, reward, gamma=world.mdp.gamma, backup="soft", confidence=rationality
         ).policy
         trajectories = [
-            _rollout(world.mdp, policy, goal=int(goal), max_length=cap, rng=rng) for _ in range(n_demos)
+            _rollout(world.mdp, p, policy, goal=int(goal), max_length=cap, rng=rng) for _ in range(n_demos)
         ]
         tasks.append(
             SimTask(
@@ -100,16 +101,31 @@ def make_tasks(
 
 
 def _rollout(
-    mdp: MDP, policy: np.ndarray, *, goal: int, max_length: int, rng: np.random.Generator
+    mdp: MDP,
+    p: sp.csr_matrix,
+    policy: np.ndarray,
+    *,
+    goal: int,
+    max_length: int,
+    rng: np.random.Generator,
 ) -> Trajectory:
-    """Sample one trajectory (with its final state) from a random non-goal start until the goal or the cap."""
-    assert mdp.next_state is not None
+    """Sample one trajectory (with its final state) from a random non-goal start until the goal or the cap.
+
+    ``p`` is the MDP's `transition_matrix`: a stochastic MDP's next state is drawn from row s·A + a (a
+    deterministic one's is looked up, drawing nothing, so its demonstrations do not depend on ``p``).
+    """
     state = int(rng.integers(mdp.n_states - 1))
     state += state >= goal
     states, actions = [state], list[int]()
     while state != goal and len(actions) < max_length:
         action = int(rng.choice(mdp.n_actions, p=policy[state]))
-        state = int(mdp.next_state[state, action])
+        if mdp.next_state is not None:
+            state = int(mdp.next_state[state, action])
+        else:
+            index = state * mdp.n_actions + action
+            row = slice(p.indptr[index], p.indptr[index + 1])
+            chance = p.data[row]  # float32 probabilities: renormalised to numpy's float64 tolerance
+            state = int(rng.choice(p.indices[row], p=chance / chance.sum()))
         states.append(state)
         actions.append(action)
     return Trajectory.of(states, actions)

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from metairl_engine import validate_trajectories
+from metairl_engine.grids import grid_mdp
 from metairl_engine.terrain import make_tasks, make_world
 
 
@@ -39,3 +42,17 @@ def test_demonstrations_are_valid_and_mostly_reach_the_goal() -> None:
         assert all(len(tr.actions) <= 3 * world.size for tr in task.trajectories)
         reached += [tr.states[-1] == task.goal for tr in task.trajectories]
     assert np.mean(reached) >= 0.8
+
+
+def test_demonstrations_on_a_slippery_world_follow_its_slips() -> None:
+    world = make_world(size=8, seed=1)
+    slippery = replace(world, mdp=grid_mdp(width=8, height=8, moves=8, stay=True, gamma=0.9, slip=0.5))
+    tasks = make_tasks(slippery, n_tasks=2, n_demos=10, seed=2)
+    planned = world.mdp.next_state
+    assert planned is not None
+    slipped = 0
+    for task in tasks:
+        validate_trajectories(slippery.mdp, task.trajectories)  # every step has a positive probability
+        for tr in task.trajectories:
+            slipped += int(np.sum(planned[tr.states[:-1], tr.actions] != tr.states[1:]))
+    assert slipped > 0  # with slip 0.5 some steps land where the chosen move does not lead
