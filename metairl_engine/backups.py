@@ -1,16 +1,19 @@
 """Q from the VR function (paper eq. 6) and the Bellman backups V = backup_a Q (eq. 7 and its variants).
 
 `QRows` precomputes, for a fixed list of (task, state) rows, how to read Q(s, ·) off the VR values:
-a GATHER of f[next_state] when every task is deterministic, one torch sparse matmul otherwise. Rows of
+a GATHER of f[next_state] when every task is deterministic, one sparse (CSR) matmul otherwise. Rows of
 several tasks are batched in one op; the VR values are only ever needed on a subset U of the states
 (``columns`` maps a state to its position in U, one map per task or one shared by all).
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 import torch
 
 from metairl_engine.config import Backup
@@ -43,7 +46,8 @@ class QRows:
         self.n_rows, self.n_actions = len(states), n_actions
         columns = np.broadcast_to(columns, (len(mdps), columns.shape[-1]))  # one map per task, or one for all
         self.index: torch.Tensor | None = None
-        self.matrix: torch.Tensor | None = None
+        self.matrix: torch.Tensor | None = None  # P's rows as CSR, and its transpose for the backward pass
+        self.transposed: torch.Tensor | None = None
         if all(m.next_state is not None for m in mdps):
             table = np.stack([m.next_state for m in mdps if m.next_state is not None])  # (T, S, A)
             nxt = table[tasks, states]  # (N, A)
@@ -61,20 +65,19 @@ class QRows:
             rows.append(((mine[:, None] * n_actions + np.arange(n_actions)).reshape(-1))[sub.row])
             cols.append(t * n_columns + columns[t, sub.col])
             vals.append(sub.data)
-        idx = torch.from_numpy(np.stack([np.concatenate(rows), np.concatenate(cols)]).astype(np.int64))
-        self.matrix = torch.sparse_coo_tensor(
-            idx,
-            torch.from_numpy(np.concatenate(vals).astype(np.float32)),
-            (self.n_rows * n_actions, len(mdps) * n_columns),
-            check_invariants=False,
-        ).coalesce()
+        matrix = sp.csr_matrix(
+            (np.concatenate(vals).astype(np.float32), (np.concatenate(rows), np.concatenate(cols))),
+            shape=(self.n_rows * n_actions, len(mdps) * n_columns),
+        )
+        self.matrix = _torch_csr(matrix)
+        self.transposed = _torch_csr(matrix.T.tocsr())
 
     def to(self, device: torch.device) -> QRows:
         """These rows with their gather index or sparse matrix on ``device`` (moved in place; returns self)."""
         if self.index is not None:
             self.index = self.index.to(device)
-        if self.matrix is not None:
-            self.matrix = self.matrix.to(device)
+        if self.matrix is not None and self.transposed is not None:
+            self.matrix, self.transposed = self.matrix.to(device), self.transposed.to(device)
         return self
 
     def __call__(self, f: torch.Tensor) -> torch.Tensor:
@@ -86,8 +89,39 @@ class QRows:
         flat = f.reshape(-1)
         if self.index is not None:
             return flat.index_select(0, self.index).reshape(self.n_rows, self.n_actions)
-        assert self.matrix is not None
-        return torch.sparse.mm(self.matrix, flat.unsqueeze(1)).reshape(self.n_rows, self.n_actions)
+        assert self.matrix is not None and self.transposed is not None
+        q = _SparseProduct.apply(flat.unsqueeze(1), self.matrix, self.transposed)
+        return q.reshape(self.n_rows, self.n_actions)
+
+
+def _torch_csr(matrix: sp.csr_matrix) -> torch.Tensor:
+    """The torch CSR tensor of a scipy CSR matrix (torch's warning that CSR support is beta silenced)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Sparse CSR tensor support is in beta state")
+        return torch.sparse_csr_tensor(
+            torch.from_numpy(matrix.indptr.astype(np.int64)),
+            torch.from_numpy(matrix.indices.astype(np.int64)),
+            torch.from_numpy(matrix.data),
+            size=matrix.shape,
+            check_invariants=False,  # scipy's CSR is valid by construction
+        )
+
+
+class _SparseProduct(torch.autograd.Function):
+    """y = P·x for a constant CSR matrix P; the backward pass is Pᵀ·g with Pᵀ kept as CSR too.
+
+    Both are one MKL CSR product; torch's own backward of ``sparse.mm`` on a COO P transposes and
+    re-coalesces P every step, and its COO forward is ~20× slower than CSR (benchmarks/RESULTS.md).
+    """
+
+    @staticmethod
+    def forward(ctx: Any, x: torch.Tensor, matrix: torch.Tensor, transposed: torch.Tensor) -> torch.Tensor:
+        ctx.transposed = transposed
+        return matrix @ x
+
+    @staticmethod
+    def backward(ctx: Any, grad: torch.Tensor) -> tuple[torch.Tensor, None, None]:
+        return ctx.transposed @ grad, None, None
 
 
 def successor_pairs(

@@ -159,9 +159,9 @@ def fit_memory(
         share_rows = nets * s
     else:
         share_rows = k * min(t * s, n_steps)
-    # Bytes per (row, action) of a Q index (a gather index, or COO entries), and of the temporaries
-    # while one is built.
-    entry = INDEX if deterministic else int(successors * 20)
+    # Bytes per (row, action) of a Q index: a gather index, or P's CSR row pointer and the column index
+    # and value of each successor in P and in Pᵀ; and of the temporaries while one is built.
+    entry = INDEX if deterministic else INDEX + int(successors * 24)
     build = 12 if deterministic else int(successors * 60)
     rows = (step_rows + share_rows) * (a * entry + 6 * INDEX)
 

@@ -10,8 +10,10 @@ from metairl_engine import MDP, FitConfig, InvalidInput, Trajectory
 from metairl_engine.backups import QRows, successors
 from metairl_engine.errors import Cancelled
 from metairl_engine.fit import CONVERGED_STEPS, HeldOutStopper, _Problem, fit, gradient_step, objective
+from metairl_engine.grids import grid_mdp
 from metairl_engine.metrics import pearson
 from metairl_engine.networks import StackedMLP
+from metairl_engine.planning import transition_matrix
 from metairl_engine.results import Progress
 from metairl_engine.terrain import make_tasks, make_world
 from tests.engine.helpers import as_sparse, small_grid, soft_demos, task
@@ -178,6 +180,20 @@ def test_deterministic_and_sparse_transitions_give_the_same_q() -> None:
     assert torch.allclose(gathered, multiplied)
     assert det.next_state is not None
     assert torch.equal(gathered[0], f[0, torch.from_numpy(det.next_state[0]).long()])
+
+
+def test_stochastic_q_and_its_gradient_equal_the_dense_transition_product() -> None:
+    mdp = grid_mdp(width=3, height=3, moves=4, stay=True, slip=0.3, gamma=0.9)
+    states, tasks = np.array([0, 4, 8, 4, 2]), np.array([0, 1, 1, 0, 1])
+    f = torch.randn(2, 9, generator=torch.Generator().manual_seed(0), requires_grad=True)
+    weights = torch.randn(5, mdp.n_actions, generator=torch.Generator().manual_seed(1))
+    q = QRows([mdp, mdp], tasks, states, columns=np.arange(9), n_columns=9)(f)
+    p = torch.from_numpy(transition_matrix(mdp).toarray()).float().reshape(9, mdp.n_actions, 9)
+    expected = torch.einsum("nas,ns->na", p[states], f[tasks])  # Q(s, a) = Σ_s' P(s'|s, a) f(s')
+    assert torch.allclose(q, expected, atol=1e-6)
+    (grad,) = torch.autograd.grad((weights * q).sum(), f)
+    (expected_grad,) = torch.autograd.grad((weights * expected).sum(), f)
+    assert torch.allclose(grad, expected_grad, atol=1e-6) and grad.abs().sum() > 0
 
 
 def test_fit_runs_on_sparse_and_tabular_mdps() -> None:
