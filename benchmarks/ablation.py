@@ -8,6 +8,7 @@ so a rerun only computes what is missing. Usage::
 
     .venv/bin/python benchmarks/ablation.py                      # every variant, every generator
     .venv/bin/python benchmarks/ablation.py --variants default none
+    .venv/bin/python benchmarks/ablation.py --featureless --variants default one-hot none   # tabular uploads
     .venv/bin/python benchmarks/ablation.py --table               # print the table from the cache only
     .venv/bin/python benchmarks/ablation.py --table --choose --variants w0.3 default w3   # choice by held-out NLL
 """
@@ -32,7 +33,7 @@ sys.path.insert(0, str(HERE))
 from accuracy import REVISION, run_one, world_and_tasks  # noqa: E402
 from frozen_terrain import frozen_world_and_tasks  # noqa: E402
 
-from metairl_engine import FitConfig  # noqa: E402
+from metairl_engine import MDP, FitConfig  # noqa: E402
 from metairl_engine.grids import grid_mdp  # noqa: E402
 from metairl_engine.terrain import SimTask, World, make_tasks, make_world  # noqa: E402
 
@@ -95,8 +96,22 @@ VARIANTS: dict[str, dict[str, Any]] = {
     # The sharing weight, for choosing it per demonstrator by held-out likelihood (`heldout_nll` of each row).
     "w0.3": {"sharing_weight": 0.3},
     "w3": {"sharing_weight": 3.0},
+    "one-hot": {"tabular_inputs": "one_hot"},
 }
 """Named FitConfig overrides; ``default`` is whatever FitConfig() is at the time of the run."""
+
+
+NO_FEATURES = " (no features)"
+"""Label suffix of fits whose MDP was given without features or layout (``--featureless``)."""
+
+
+def without_features(world: World) -> World:
+    """The world with an MDP of the same transitions but no features and no layout: a tabular upload."""
+    m = world.mdp
+    mdp = MDP(
+        n_states=m.n_states, n_actions=m.n_actions, gamma=m.gamma, next_state=m.next_state, sparse=m.sparse
+    )
+    return replace(world, mdp=mdp)
 
 
 def config_of(variant: str) -> FitConfig:
@@ -178,6 +193,11 @@ def main() -> None:
     parser.add_argument(
         "--choose", action="store_true", help="also: the variants chosen per world by held-out NLL"
     )
+    parser.add_argument(
+        "--featureless",
+        action="store_true",
+        help="fit each world's MDP without its features and layout (labels get NO_FEATURES)",
+    )
     args = parser.parse_args()
 
     import torch
@@ -190,22 +210,25 @@ def main() -> None:
         for r in rows
         if r["tasks"] == args.tasks and r["demos"] == args.demos
     }
+    suffix = NO_FEATURES if args.featureless else ""
     todo = [
         (g, v, w)
         for v in args.variants
         for g in args.generators
         for w in range(args.worlds)
-        if (g, key_of(v), w) not in done and not args.table
+        if (g, key_of(v) + suffix, w) not in done and not args.table
     ]
     worlds: dict[tuple[str, int], tuple[World, list[SimTask]]] = {}
     for g, v, w in tqdm(todo, desc="fits"):
         if (g, w) not in worlds:
-            worlds[g, w] = GENERATORS[g](w)
+            world, sims = GENERATORS[g](w)
+            worlds[g, w] = (without_features(world) if args.featureless else world), sims
         world, sims = worlds[g, w]
         out = run_one(world, sims, n_tasks=args.tasks, n_demos=args.demos, config=config_of(v))
-        rows.append({"generator": g, "variant": v, "config_key": key_of(v), "world": w, **setting, **out})
+        key = key_of(v) + suffix
+        rows.append({"generator": g, "variant": v + suffix, "config_key": key, "world": w, **setting, **out})
         args.cache.write_text(json.dumps(rows, indent=0))
-    current = {key_of(v) for v in args.variants}
+    current = {key_of(v) + suffix for v in args.variants}
     wanted = [
         r
         for r in rows

@@ -15,6 +15,7 @@ Method = Literal["meta_irl", "maxent"]
 Sharing = Literal["none", "l2", "huber", "std", "entropy"]
 SharingStates = Literal["all", "visited"]
 Backup = Literal["max", "logsumexp", "bgi"]
+TabularInputs = Literal["coordinates", "one_hot"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -50,6 +51,14 @@ class FitConfig:
     networks. On a velocity grid (features x, y, direction one-hot) ``(0, 1)`` makes r_b a function of the
     cell alone, compared by the sharing loss with each task reward in every direction of motion at that cell:
     see docs/motion.md (identifiability) for why motion fits want it. Needs state features (not tabular)."""
+
+    tabular_inputs: TabularInputs = "coordinates"
+    """What the networks see of each state when the MDP has no state features. ``coordinates``: the state's
+    position, from the MDP's layout when it has one (x, y in [0, 1], plus a one-hot of its channel), else
+    recovered from the transition graph (`coordinates.graph_coordinates`), so rewards carry over to
+    neighbouring states as they do with (x, y) features. ``one_hot``: a learned embedding per state (the
+    paper's tabular network), where a state no demonstration reaches gets its reward from the sharing loss
+    alone."""
 
     backup: Backup = "max"
     """Bellman backup V(s) from Q(s, ·): max (paper eq. 7), logsumexp (MaxEnt) or BGI's (1/k)·logsumexp(k·Q)."""

@@ -25,6 +25,7 @@ import torch.nn.functional as F
 
 from metairl_engine.backups import QRows, backup, successor_pairs
 from metairl_engine.config import FitConfig, ensemble_size, sharing_block_count
+from metairl_engine.coordinates import state_coordinates
 from metairl_engine.demos import validate_trajectories
 from metairl_engine.errors import Cancelled, InvalidInput, Issue, check
 from metairl_engine.holdout import Steps, split_steps
@@ -130,6 +131,8 @@ class _Problem:
         self.n_states = self.mdps[0].n_states
         self.gamma = torch.tensor([m.gamma for m in self.mdps], dtype=torch.float32)
         features = self.mdps[0].features
+        if features is None and config.tabular_inputs == "coordinates":
+            features = state_coordinates([t.mdp for t in tasks], seed=config.seed)
         base_columns = _baseline_columns(config, features)
         self.features = None if features is None else _encode(features, config)
         self.base_features = (

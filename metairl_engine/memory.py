@@ -15,6 +15,11 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 from metairl_engine.config import FitConfig, ensemble_size
+from metairl_engine.coordinates import LANDMARKS
+
+COORDINATE_COLUMNS = 10
+"""Feature columns counted for an MDP without features under ``tabular_inputs="coordinates"``: x and y, and a
+channel one-hot for a layout of up to 8 panels (a velocity grid's)."""
 
 EVAL_CHUNK = 16_384
 """States per chunk when evaluating the final networks on every state (bounds memory at 80,000 states)."""
@@ -130,6 +135,11 @@ def fit_memory(
 
     k = ensemble_size(config, n_tasks=t, n_states=s)
     nets = t * k
+    if n_features is None and config.tabular_inputs == "coordinates":
+        # Positions recovered from the MDP (coordinates.py) stand in for features; while they are computed,
+        # float64 hop distances to the landmarks, their squares and the positions.
+        n_features = COORDINATE_COLUMNS
+        inputs += LANDMARKS * s * 8 * 3
     tabular = n_features is None
     octave_columns = 1 + 2 * config.fourier_octaves
     width = s if tabular else (n_features or 0) * octave_columns

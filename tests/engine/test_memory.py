@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from metairl_engine.config import FitConfig, ensemble_size
-from metairl_engine.memory import FLOAT, PARAMETER_COPIES, fit_memory, retained_heap
+from metairl_engine.memory import COORDINATE_COLUMNS, FLOAT, PARAMETER_COPIES, fit_memory, retained_heap
 from metairl_engine.networks import StackedMLP
 
 
@@ -21,7 +21,7 @@ def estimate(config: FitConfig, **sizes: int) -> int:
 
 
 def test_network_memory_is_every_parameter_of_the_fit_networks_five_times() -> None:
-    config = FitConfig(hidden=(64, 32))
+    config = FitConfig(hidden=(64, 32), tabular_inputs="one_hot")
     k = ensemble_size(config, n_tasks=3, n_states=500)
     generator = torch.Generator().manual_seed(0)
     vr = StackedMLP(n_members=3 * k, n_inputs=500, hidden=config.hidden, tabular=True, generator=generator)
@@ -80,3 +80,12 @@ def test_memory_freed_during_a_fit_is_kept_for_reuse_and_returned_at_its_end() -
         kept = resident_bytes() - before
     returned = resident_bytes() - before
     assert kept > size // 2 and returned < size // 4
+
+
+def test_an_mdp_without_features_is_counted_with_the_coordinates_the_fit_gives_it() -> None:
+    sizes = {"n_tasks": 3, "n_states": 20_000, "n_actions": 8, "n_steps": 300, "n_mdps": 1}
+    one_hot = fit_memory(FitConfig(tabular_inputs="one_hot"), n_features=None, **sizes)
+    coordinates = fit_memory(FitConfig(), n_features=None, **sizes)
+    assert coordinates.networks == fit_memory(FitConfig(), n_features=COORDINATE_COLUMNS, **sizes).networks
+    assert coordinates.networks < one_hot.networks / 100  # no embedding row per state and network
+    assert coordinates.inputs > fit_memory(FitConfig(), n_features=COORDINATE_COLUMNS, **sizes).inputs

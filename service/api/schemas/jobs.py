@@ -59,7 +59,7 @@ class JobIn(BaseModel):
         default=None,
         description="Fit settings (contract names): method, sharing, sharing_weight, sharing_states, backup, "
         "bgi_k, confidence, hidden, learning_rate, max_steps, tolerance, seed, and holdout_fraction, patience, "
-        "ensemble, fourier_octaves, sharing_blocks. "
+        "ensemble, fourier_octaves, sharing_blocks, tabular_inputs. "
         "Omitted settings take their defaults; an unknown or invalid one is a 422 naming `/config/<field>`.",
     )
 
