@@ -50,7 +50,8 @@ class FitConfig:
     """Columns of the MDP's state features that the baseline network r_b sees; None: all of them, like the VR
     networks. On a velocity grid (features x, y, direction one-hot) ``(0, 1)`` makes r_b a function of the
     cell alone, compared by the sharing loss with each task reward in every direction of motion at that cell:
-    see docs/motion.md (identifiability) for why motion fits want it. Needs state features (not tabular)."""
+    see docs/motion.md (identifiability) for why motion fits want it. Needs state features, or the coordinates
+    an MDP without them gets (``tabular_inputs="coordinates"``: x, y, then the channel one-hot of a layout)."""
 
     tabular_inputs: TabularInputs = "coordinates"
     """What the networks see of each state when the MDP has no state features. ``coordinates``: the state's
