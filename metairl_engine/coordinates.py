@@ -7,7 +7,7 @@ features (`benchmarks/RESULTS.md`, "MDPs without features"). So a featureless MD
 
 - with a ``layout`` (states tile ``channels`` panels of ``height`` × ``width``, ``state = (channel · height +
   y) · width + x``): x and y normalised to [0, 1], plus a one-hot of the channel when there are several —
-  exactly the features `grids.grid_mdp` gives a plain or velocity grid;
+  `grids.layout_features`, exactly the features `grids.grid_mdp` gives a plain or velocity grid;
 - without one: positions recovered from the transition graph by landmark multidimensional scaling (de Silva
   & Tenenbaum 2003) of the hop distances between states (how many steps apart, either way round, under any
   task's transitions), in two dimensions, each normalised to [0, 1]. On a grid this recovers its two axes.
@@ -21,7 +21,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import shortest_path
 
-from metairl_engine.mdp import MDP, Layout
+from metairl_engine.grids import layout_features
+from metairl_engine.mdp import MDP
 from metairl_engine.planning import transition_matrix
 
 LANDMARKS = 64
@@ -38,20 +39,8 @@ def state_coordinates(mdps: Sequence[MDP], *, seed: int) -> np.ndarray | None:
     """
     layout = next((m.layout for m in mdps if m.layout is not None), None)
     if layout is not None:
-        return layout_coordinates(layout)
+        return layout_features(layout)
     return graph_coordinates(mdps, seed=seed)
-
-
-def layout_coordinates(layout: Layout) -> np.ndarray:
-    """(x / (width − 1), y / (height − 1)) per state, then a one-hot of its channel if there are several."""
-    per_panel = layout.width * layout.height
-    y, x = np.divmod(np.arange(per_panel), layout.width)
-    xy = np.stack([x / max(layout.width - 1, 1), y / max(layout.height - 1, 1)], axis=1).astype(np.float32)
-    xy = np.tile(xy, (layout.channels, 1))
-    if layout.channels == 1:
-        return xy
-    channel = np.repeat(np.eye(layout.channels, dtype=np.float32), per_panel, axis=0)
-    return np.concatenate([xy, channel], axis=1)
 
 
 def graph_coordinates(mdps: Sequence[MDP], *, seed: int) -> np.ndarray | None:

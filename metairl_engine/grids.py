@@ -87,8 +87,8 @@ def grid_mdp(
     next_state = _cell_targets(width, height, disp)  # (W*H, A) target cell y*W + x
     if velocity:  # the target's channel is the action; the table is the same in every channel
         next_state = np.tile(np.arange(len(disp)) * (width * height) + next_state, (8, 1))
-    features = _features(width, height, velocity)
     layout = Layout(width=width, height=height, channels=8 if velocity else 1)
+    features = layout_features(layout)
     if slip == 0.0:
         return MDP.build(gamma=gamma, next_state=next_state, features=features, layout=layout)
     s, a, nxt, p = _slipped(next_state, float(slip))
@@ -141,14 +141,17 @@ def _cell_targets(width: int, height: int, disp: np.ndarray) -> np.ndarray:
     return np.where(inside, ny * width + nx, (y * width + x)[:, None]).astype(np.int32)
 
 
-def _features(width: int, height: int, velocity: bool) -> np.ndarray:
-    """(S, 2) normalised (x, y) in [0, 1], plus an (S, 8) direction one-hot on a velocity grid; float32."""
-    y, x = np.divmod(np.arange(width * height), width)
-    xy = np.stack([x / max(width - 1, 1), y / max(height - 1, 1)], axis=1).astype(np.float32)
-    if not velocity:
+def layout_features(layout: Layout) -> np.ndarray:
+    """(S, 2) normalised (x / (width − 1), y / (height − 1)) in [0, 1] per state, then an (S, channels)
+    one-hot of its panel when there are several (a velocity grid's direction); float32."""
+    per_panel = layout.width * layout.height
+    y, x = np.divmod(np.arange(per_panel), layout.width)
+    xy = np.stack([x / max(layout.width - 1, 1), y / max(layout.height - 1, 1)], axis=1).astype(np.float32)
+    xy = np.tile(xy, (layout.channels, 1))
+    if layout.channels == 1:
         return xy
-    one_hot = np.repeat(np.eye(8, dtype=np.float32), width * height, axis=0)
-    return np.concatenate([np.tile(xy, (8, 1)), one_hot], axis=1)
+    channel = np.repeat(np.eye(layout.channels, dtype=np.float32), per_panel, axis=0)
+    return np.concatenate([xy, channel], axis=1)
 
 
 def _slipped(next_state: np.ndarray, slip: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

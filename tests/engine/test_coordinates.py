@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from metairl_engine import MDP, FitConfig, TaskData
-from metairl_engine.coordinates import graph_coordinates, layout_coordinates, state_coordinates
+from metairl_engine.coordinates import graph_coordinates, state_coordinates
 from metairl_engine.fit import fit
-from metairl_engine.grids import grid_mdp
+from metairl_engine.grids import grid_mdp, layout_features
 from metairl_engine.metrics import pearson
 from metairl_engine.terrain import make_tasks, make_world
 
@@ -31,7 +31,7 @@ def featureless(mdp: MDP, *, keep_layout: bool) -> MDP:
 def test_layout_coordinates_are_the_features_a_grid_mdp_gets(velocity: bool) -> None:
     grid = grid_mdp(width=5, height=4, velocity=velocity, gamma=0.9)
     assert grid.layout is not None and grid.features is not None
-    assert np.array_equal(layout_coordinates(grid.layout), grid.features)
+    assert np.array_equal(layout_features(grid.layout), grid.features)
     coords = state_coordinates([featureless(grid, keep_layout=True)], seed=0)
     assert coords is not None and np.array_equal(coords, grid.features)
 
