@@ -33,7 +33,7 @@ sys.path.insert(0, str(HERE))
 from accuracy import REVISION, run_one, world_and_tasks  # noqa: E402
 from frozen_terrain import frozen_world_and_tasks  # noqa: E402
 
-from metairl_engine import MDP, FitConfig  # noqa: E402
+from metairl_engine import FitConfig  # noqa: E402
 from metairl_engine.grids import grid_mdp  # noqa: E402
 from metairl_engine.terrain import SimTask, World, make_tasks, make_world  # noqa: E402
 
@@ -107,11 +107,7 @@ NO_FEATURES = " (no features)"
 
 def without_features(world: World) -> World:
     """The world with an MDP of the same transitions but no features and no layout: a tabular upload."""
-    m = world.mdp
-    mdp = MDP(
-        n_states=m.n_states, n_actions=m.n_actions, gamma=m.gamma, next_state=m.next_state, sparse=m.sparse
-    )
-    return replace(world, mdp=mdp)
+    return replace(world, mdp=replace(world.mdp, features=None, layout=None))
 
 
 def config_of(variant: str) -> FitConfig:

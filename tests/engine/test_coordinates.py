@@ -17,14 +17,7 @@ from metairl_engine.terrain import make_tasks, make_world
 
 def featureless(mdp: MDP, *, keep_layout: bool) -> MDP:
     """The same transitions with no features (and its layout kept or dropped)."""
-    return MDP(
-        n_states=mdp.n_states,
-        n_actions=mdp.n_actions,
-        gamma=mdp.gamma,
-        next_state=mdp.next_state,
-        sparse=mdp.sparse,
-        layout=mdp.layout if keep_layout else None,
-    )
+    return replace(mdp, features=None, layout=mdp.layout if keep_layout else None)
 
 
 @pytest.mark.parametrize("velocity", [False, True])
