@@ -1,7 +1,7 @@
 """Ablation: each candidate change to the default config, measured one by one on every terrain generator.
 
 The setting is the one issue 13 targets: 8 tasks × 3 demonstrations, goal state excluded, 10 worlds of the
-repo's generator (`metairl_engine/terrain.py`, tuned on), of the frozen one (`frozen_terrain.py`, never
+repo's generator (`metairl_engine/sim/terrain.py`, tuned on), of the frozen one (`frozen_terrain.py`, never
 tuned on) and of ``slip``: the repo's worlds with stochastic moves (`slippery_world_and_tasks`, added in
 session 10, never tuned on). A variant is a named set of FitConfig overrides; every fit is cached in `ablation_results.json`
 so a rerun only computes what is missing. Usage::
@@ -35,7 +35,7 @@ from frozen_terrain import frozen_world_and_tasks  # noqa: E402
 
 from metairl_engine import FitConfig  # noqa: E402
 from metairl_engine.grids import grid_mdp  # noqa: E402
-from metairl_engine.terrain import SimTask, World, make_tasks, make_world  # noqa: E402
+from metairl_engine.sim.terrain import SimTask, World, make_tasks, make_world  # noqa: E402
 
 SLIP = 0.2
 """The ``slip`` generator's probability that a step goes where another move (uniformly chosen) leads."""

@@ -30,7 +30,7 @@ sys.path.insert(0, str(ROOT))
 from metairl_engine import FitConfig  # noqa: E402
 from metairl_engine.metrics import pearson  # noqa: E402
 from metairl_engine.results import TaskData  # noqa: E402
-from metairl_engine.terrain import SimTask, World, make_tasks, make_world  # noqa: E402
+from metairl_engine.sim.terrain import SimTask, World, make_tasks, make_world  # noqa: E402
 
 SHARINGS = ("none", "l2", "huber", "std", "entropy")
 

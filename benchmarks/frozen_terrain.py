@@ -1,7 +1,7 @@
 """FROZEN second terrain generator: a held-out world family that no default of metairl is ever tuned on.
 
 Committed before any tuning of the defaults (issue 13) and never changed since: defaults are chosen on the
-repo's own generator (`metairl_engine/terrain.py`) and only *reported* here, so a gain that shows up on
+repo's own generator (`metairl_engine/sim/terrain.py`) and only *reported* here, so a gain that shows up on
 both is a gain of the method, not a fit to one generator. It differs from the repo's generator in every
 respect the issue names:
 
@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from metairl_engine.grids import grid_mdp
-from metairl_engine.terrain import SimTask, World, make_tasks
+from metairl_engine.sim.terrain import SimTask, World, make_tasks
 
 SIZE = 24
 GAMMA = 0.95

@@ -1,7 +1,7 @@
 """The paper's Table I on the synthetic patient, through the engine directly (no service).
 
-For each session (unstimulated, stimulated) of `metairl_engine.patient.simulate_patient`, the COP recording is
-cut into per-direction demonstrations (`metairl_engine.motion.demonstrations`) and one meta-IRL fit with Huber
+For each session (unstimulated, stimulated) of `metairl_engine.sim.patient.simulate_patient`, the COP recording is
+cut into per-direction demonstrations (`metairl_engine.motion.recording.demonstrations`) and one meta-IRL fit with Huber
 sharing and the default config learns a reward per instructed direction plus the baseline on the velocity
 grid (100×100 = 80,000 states by default). The table gives the Pearson correlation of every recovered task
 reward with the patient's ideal reward, and of the baseline with it (the paper's "origin" column), on the
@@ -13,7 +13,7 @@ states the demonstrations visit and on all states, with the wall time of each se
 ``--size 30`` (7,200 states) runs in a few minutes for a quick look; only 100 reproduces the paper's MDP.
 
 The identifiability study (docs/motion.md) is a subcommand: it fits both sessions of the planning patient and
-of the controller patient (`metairl_engine.controller_patient`) with each config of `VARIANTS` and scores the
+of the controller patient (`metairl_engine.sim.controller_patient`) with each config of `VARIANTS` and scores the
 learned baseline against the inherent preference; rows accumulate in ``benchmarks/motion/identifiability.json``
 and the table, with the kinematic readout of the same recordings, replaces MOTION.md's identifiability block::
 
@@ -42,14 +42,14 @@ sys.path.insert(0, str(ROOT))
 import torch  # noqa: E402
 
 from metairl_engine import FitConfig, Layout, Trajectory  # noqa: E402
-from metairl_engine.baseline_readout import ring_centred  # noqa: E402
-from metairl_engine.controller_patient import ControllerSettings, simulate_controller_patient  # noqa: E402
 from metairl_engine.fit import FitResult, Progress, TaskData, fit  # noqa: E402
 from metairl_engine.grids import DIRECTION_NAMES, grid_mdp, velocity_coords  # noqa: E402
-from metairl_engine.kinematics import compare_recordings, comparison_png  # noqa: E402
 from metairl_engine.metrics import pearson  # noqa: E402
-from metairl_engine.motion import DiscretiseSettings, demonstrations  # noqa: E402
-from metairl_engine.patient import (  # noqa: E402
+from metairl_engine.motion.kinematics import compare_recordings, comparison_png  # noqa: E402
+from metairl_engine.motion.readout import ring_centred  # noqa: E402
+from metairl_engine.motion.recording import DiscretiseSettings, demonstrations  # noqa: E402
+from metairl_engine.sim.controller_patient import ControllerSettings, simulate_controller_patient  # noqa: E402
+from metairl_engine.sim.patient import (  # noqa: E402
     DIRECTION_PREFERENCE,
     PatientSettings,
     SyntheticPatient,
@@ -206,7 +206,7 @@ def report(
             f"- Patient: `simulate_patient(PatientSettings(width={patient.width}, height={patient.height}))` — "
             "8 instructions × 3 repetitions per session, 100 Hz COP with sway and sensor noise; its ideal reward "
             "is a map of places plus a preference per direction of motion.",
-            "- Pipeline: `metairl_engine.motion.demonstrations` (discretise, fill skipped cells, drop pauses, "
+            "- Pipeline: `metairl_engine.motion.recording.demonstrations` (discretise, fill skipped cells, drop pauses, "
             "segment at peaks of the distance from the plate centre, label by instruction)"
             + (
                 "; then each movement cut at its farthest cell and only the outward half kept (`--outward-only`)."
@@ -535,7 +535,7 @@ def identify_main(argv: list[str]) -> None:
         "",
         "### The kinematic readout on the same recordings",
         "",
-        "Peak reach per instructed direction (`metairl_engine.kinematics.compare_recordings`, mean over the 3 "
+        "Peak reach per instructed direction (`metairl_engine.motion.kinematics.compare_recordings`, mean over the 3 "
         "repetitions with its 95 % bootstrap interval). The controller's weak side is `left`. All five "
         "descriptors of both patients are drawn in `benchmarks/motion/comparison-planner.png` and "
         "`comparison-controller.png` (`comparison_png`).",

@@ -33,7 +33,7 @@ from metairl_engine.grids import grid_mdp  # noqa: E402
 from metairl_engine.mdp import MDP  # noqa: E402
 from metairl_engine.planning import transition_matrix, value_iteration  # noqa: E402
 from metairl_engine.results import TaskData  # noqa: E402
-from metairl_engine.terrain import make_world  # noqa: E402
+from metairl_engine.sim.terrain import make_world  # noqa: E402
 
 SIZE = 100
 CONFIG = FitConfig(sharing="huber", sharing_states="all")

@@ -36,7 +36,7 @@ from metairl_engine.grids import grid_mdp  # noqa: E402
 from metairl_engine.metrics import pearson  # noqa: E402
 from metairl_engine.networks import StackedMLP  # noqa: E402
 from metairl_engine.results import TaskData  # noqa: E402
-from metairl_engine.terrain import SimTask, World, make_tasks, make_world  # noqa: E402
+from metairl_engine.sim.terrain import SimTask, World, make_tasks, make_world  # noqa: E402
 
 
 def velocity_world_and_tasks(index: int) -> tuple[World, list[SimTask]]:

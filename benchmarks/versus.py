@@ -99,7 +99,7 @@ class Problem:
 def terrain_problem(size: int, world: int) -> Problem:
     """A size×size hilly terrain (seeded by ``world``) with N_TASKS goal tasks of N_DEMOS demonstrations."""
     from metairl_engine import TaskData
-    from metairl_engine.terrain import make_tasks, make_world
+    from metairl_engine.sim.terrain import make_tasks, make_world
 
     terrain = make_world(size=size, n_hills=round(HILLS_PER_CELL * size * size), seed=world)
     sims = make_tasks(terrain, n_tasks=N_TASKS, n_demos=N_DEMOS, seed=1000 + world)

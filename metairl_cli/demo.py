@@ -37,7 +37,7 @@ from metairl_cli.demo_report import write_report
 from metairl_cli.keys import create_key
 from metairl_cli.serve import LOCAL_LAB
 from metairl_client import Client, JobState, MetairlError
-from metairl_engine.terrain import World
+from metairl_engine.sim.terrain import World
 from service.settings import Settings, get_settings
 from service.store.db import make_engine, migrate
 

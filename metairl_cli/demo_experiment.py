@@ -1,6 +1,6 @@
 """The terrain experiment of `metairl demo` (paper §IV-A, Fig. 2) as data: settings, worlds, the job plan, outcomes.
 
-No HTTP here: `make_experiment` generates seeded worlds and goal tasks with `metairl_engine.terrain`
+No HTTP here: `make_experiment` generates seeded worlds and goal tasks with `metairl_engine.sim.terrain`
 (numpy only), `plan_jobs` lists one job per (world, task count, sharing loss), and `JobOutcome` holds
 what came back, scored client-side with `goal_excluded_pearson`.
 """
@@ -14,7 +14,7 @@ import numpy as np
 
 from metairl_engine.config import Sharing
 from metairl_engine.metrics import pearson
-from metairl_engine.terrain import SimTask, World, make_tasks, make_world
+from metairl_engine.sim.terrain import SimTask, World, make_tasks, make_world
 
 TASK_SEED_OFFSET = 1000
 """World i's tasks are seeded ``TASK_SEED_OFFSET + seed + i`` (benchmarks/accuracy.py's scheme)."""

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from metairl_engine.motion import DiscretiseSettings, demonstrations
-from metairl_engine.patient import PatientSettings, simulate_patient
+from metairl_engine.motion.recording import DiscretiseSettings, demonstrations
+from metairl_engine.sim.patient import PatientSettings, simulate_patient
 from tests.served import REPO, metairl_serve
 
 pytestmark = [pytest.mark.worker, pytest.mark.slow]

@@ -35,7 +35,7 @@ SESSIONS = ("unstimulated", "stimulated")
 
 def write_patient_csv(folder: Path, *, size: int, seed: int) -> list[Path]:
     """Simulate the patient (numpy only) and write each session's COP samples and the ideal reward as CSV."""
-    from metairl_engine.patient import PatientSettings, simulate_patient
+    from metairl_engine.sim.patient import PatientSettings, simulate_patient
 
     patient = simulate_patient(PatientSettings(width=size, height=size, seed=seed))
     folder.mkdir(parents=True, exist_ok=True)

@@ -2,8 +2,8 @@
 descriptors of a demonstrator's recordings with 95 % bootstrap intervals, two demonstrators' (or sessions')
 differences, and beside them the learned-reward readout of each side's latest succeeded job.
 
-numpy only: the kinematics are `metairl_engine.kinematics`, the learned-reward part `metairl_engine.
-baseline_readout`; the comparison figure is drawn by `kinematics.comparison_png` (matplotlib, Agg). Nothing
+numpy only: the kinematics are `metairl_engine.motion.kinematics`, the learned-reward part `metairl_engine.
+motion.readout`; the comparison figure is drawn by `kinematics.comparison_png` (matplotlib, Agg). Nothing
 here writes to the database.
 """
 
@@ -15,9 +15,9 @@ import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from metairl_engine.baseline_readout import BASELINE_CAVEAT, ring_centred
 from metairl_engine.grids import DIRECTION_NAMES
-from metairl_engine.kinematics import Movement, compare, comparison_png, movements, summarise
+from metairl_engine.motion.kinematics import Movement, compare, comparison_png, movements, summarise
+from metairl_engine.motion.readout import BASELINE_CAVEAT, ring_centred
 from service.api.schemas.motion import UNITS
 from service.jobs.rewards import metrics, visited_states
 from service.jobs.status import JobStatus

@@ -20,8 +20,8 @@ import numpy as np
 from sqlalchemy import ColumnElement, Row, and_, bindparam, select
 from sqlalchemy.orm import Session
 
-from metairl_engine.baseline_readout import BASELINE_CAVEAT
 from metairl_engine.mdp import Layout
+from metairl_engine.motion.readout import BASELINE_CAVEAT
 
 if TYPE_CHECKING:
     from metairl_engine.distances import Interval as Bootstrapped

@@ -2,7 +2,7 @@
 
 A recording (JSON rows, a CSV file with columns ``t,x,y[,instruction]``, or a force-plate file read into
 such samples by `service.files.force_plates`) is validated and cut by the engine
-(`metairl_engine.motion`: samples → cells and directions, skipped cells filled, pauses dropped, segments at
+(`metairl_engine.motion.recording`: samples → cells and directions, skipped cells filled, pauses dropped, segments at
 peaks of the distance from the origin, labelled by instruction or direction). Each label becomes, or joins,
 the demonstrator's task of that name on the same MDP, and its segments are stored as one demonstration batch.
 
@@ -22,7 +22,7 @@ from sqlalchemy.orm import Session
 from metairl_engine import InvalidInput
 from metairl_engine.demos import Trajectory
 from metairl_engine.grids import DIRECTION_NAMES
-from metairl_engine.motion import (
+from metairl_engine.motion.recording import (
     NO_INSTRUCTION,
     Bounds,
     DiscretiseSettings,

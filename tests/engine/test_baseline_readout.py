@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from metairl_engine.baseline_readout import BASELINE_CAVEAT, ring_centred
 from metairl_engine.grids import velocity_coords
+from metairl_engine.motion.readout import BASELINE_CAVEAT, ring_centred
 
 SIZE = 9
 

@@ -4,16 +4,16 @@ import numpy as np
 import pytest
 
 from metairl_engine import validate_trajectories
-from metairl_engine.controller_patient import (
+from metairl_engine.errors import InvalidInput
+from metairl_engine.grids import DIRECTION_NAMES, grid_mdp
+from metairl_engine.motion.recording import NO_INSTRUCTION, DiscretiseSettings, demonstrations
+from metairl_engine.sim.controller_patient import (
     ControllerPatient,
     ControllerSettings,
     preference_map,
     side_reach,
     simulate_controller_patient,
 )
-from metairl_engine.errors import InvalidInput
-from metairl_engine.grids import DIRECTION_NAMES, grid_mdp
-from metairl_engine.motion import NO_INSTRUCTION, DiscretiseSettings, demonstrations
 
 SIZE = 20
 SETTINGS = ControllerSettings(width=SIZE, height=SIZE, repetitions=2)

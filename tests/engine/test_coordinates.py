@@ -12,7 +12,7 @@ from metairl_engine.coordinates import graph_coordinates, state_coordinates
 from metairl_engine.fit import fit
 from metairl_engine.grids import grid_mdp, layout_features
 from metairl_engine.metrics import pearson
-from metairl_engine.terrain import make_tasks, make_world
+from metairl_engine.sim.terrain import make_tasks, make_world
 
 
 def featureless(mdp: MDP, *, keep_layout: bool) -> MDP:

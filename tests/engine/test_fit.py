@@ -15,7 +15,7 @@ from metairl_engine.metrics import pearson
 from metairl_engine.networks import StackedMLP
 from metairl_engine.planning import transition_matrix
 from metairl_engine.results import Progress
-from metairl_engine.terrain import make_tasks, make_world
+from metairl_engine.sim.terrain import make_tasks, make_world
 from tests.engine.helpers import as_sparse, small_grid, soft_demos, task
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from metairl_engine import InvalidInput
-from metairl_engine.force_plate import PlateAxes, loaded_span, wrench_cop
+from metairl_engine.motion.force_plate import PlateAxes, loaded_span, wrench_cop
 
 
 @pytest.mark.parametrize("z_up", [True, False])

@@ -3,8 +3,7 @@
 import numpy as np
 import pytest
 
-from metairl_engine.controller_patient import ControllerSettings, simulate_controller_patient
-from metairl_engine.kinematics import (
+from metairl_engine.motion.kinematics import (
     DESCRIPTORS,
     KinematicSettings,
     Movement,
@@ -15,7 +14,8 @@ from metairl_engine.kinematics import (
     movements,
     summarise,
 )
-from metairl_engine.motion import Bounds, Recording
+from metairl_engine.motion.recording import Bounds, Recording
+from metairl_engine.sim.controller_patient import ControllerSettings, simulate_controller_patient
 
 PLATE = Bounds(x_min=-1.0, x_max=1.0, y_min=-1.0, y_max=1.0)
 RATE = 100.0

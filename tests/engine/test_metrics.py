@@ -70,7 +70,7 @@ def test_expected_value_difference_is_zero_for_the_true_reward_and_positive_for_
 
 
 def test_metrics_import_without_torch() -> None:
-    code = "import sys, metairl_engine, metairl_engine.metrics, metairl_engine.terrain; print('torch' in sys.modules)"
+    code = "import sys, metairl_engine, metairl_engine.metrics, metairl_engine.sim.terrain; print('torch' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
 

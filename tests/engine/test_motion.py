@@ -5,7 +5,7 @@ import pytest
 
 from metairl_engine import InvalidInput, validate_trajectories
 from metairl_engine.grids import DIRECTION_NAMES, DIRECTIONS, grid_mdp, velocity_coords, velocity_state
-from metairl_engine.motion import (
+from metairl_engine.motion.recording import (
     NO_INSTRUCTION,
     Bounds,
     DiscretiseSettings,

@@ -5,8 +5,8 @@ import pytest
 
 from metairl_engine import validate_trajectories
 from metairl_engine.grids import DIRECTION_NAMES, grid_mdp
-from metairl_engine.motion import DiscretiseSettings, Recording, demonstrations, segment
-from metairl_engine.patient import (
+from metairl_engine.motion.recording import DiscretiseSettings, Recording, demonstrations, segment
+from metairl_engine.sim.patient import (
     DIRECTION_PREFERENCE,
     PatientSettings,
     SyntheticPatient,

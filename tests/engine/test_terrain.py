@@ -8,7 +8,7 @@ import numpy as np
 
 from metairl_engine import validate_trajectories
 from metairl_engine.grids import grid_mdp
-from metairl_engine.terrain import make_tasks, make_world
+from metairl_engine.sim.terrain import make_tasks, make_world
 
 
 def test_same_seed_same_world_and_tasks() -> None:

@@ -11,7 +11,7 @@ from fastapi import FastAPI
 from fastapi.testclient import TestClient
 from sqlalchemy import func, select
 
-from metairl_engine.patient import PatientSettings, simulate_patient
+from metairl_engine.sim.patient import PatientSettings, simulate_patient
 from service.store.models import Base
 from tests.service.helpers import add_demonstrations, created, fitted_job, make_mdp, make_task
 

@@ -18,7 +18,7 @@ from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
 from metairl_client import Client
-from metairl_engine.motion import canonical_instruction
+from metairl_engine.motion.recording import canonical_instruction
 from service.files import c3d
 from service.store.models.recordings import Recording as RecordingRow
 from service.store.recordings import load_recording

@@ -13,8 +13,8 @@ import pytest
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
-from metairl_engine.controller_patient import ControllerSettings, simulate_controller_patient
-from metairl_engine.motion import Recording
+from metairl_engine.motion.recording import Recording
+from metairl_engine.sim.controller_patient import ControllerSettings, simulate_controller_patient
 from tests.service.helpers import (
     PLATE,
     cop_rows,

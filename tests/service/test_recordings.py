@@ -16,8 +16,8 @@ import pytest
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
-from metairl_engine.motion import DiscretiseSettings, Recording, demonstrations
-from metairl_engine.patient import PatientSettings, simulate_patient
+from metairl_engine.motion.recording import DiscretiseSettings, Recording, demonstrations
+from metairl_engine.sim.patient import PatientSettings, simulate_patient
 from service.store.loaders import load_trajectories
 from service.store.models.demonstrators import Demonstrator
 from service.store.recordings import lock_demonstrator

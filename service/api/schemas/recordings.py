@@ -1,6 +1,6 @@
 """Bodies of `/v1/demonstrators/{demonstrator_id}/recordings`: centre-of-pressure recordings (docs/motion.md).
 
-The plate bounds and segment settings are the engine's own frozen dataclasses (`metairl_engine.motion`), so a
+The plate bounds and segment settings are the engine's own frozen dataclasses (`metairl_engine.motion.recording`), so a
 request carries exactly the knobs the pipeline has, with the engine's defaults.
 """
 
@@ -11,8 +11,8 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 from pydantic.json_schema import JsonDict, JsonValue
 
-from metairl_engine.force_plate import MIN_FZ, PlateAxes
-from metairl_engine.motion import Bounds, DiscretiseSettings, SegmentSettings
+from metairl_engine.motion.force_plate import MIN_FZ, PlateAxes
+from metairl_engine.motion.recording import Bounds, DiscretiseSettings, SegmentSettings
 from service.api.schemas.common import Resource, UploadFormat
 from service.store.models.recordings import Recording as RecordingRow
 

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from metairl_engine.grids import DIRECTION_NAMES, DIRECTIONS
-from metairl_engine.motion import Recording, SegmentSettings, segment
+from metairl_engine.motion.recording import Recording, SegmentSettings, segment
 
 DESCRIPTORS = ("peak_reach", "path_length", "deviation", "time_to_peak_s", "mean_speed")
 """Descriptor names, in the order the readout lists them (docs/api.md, "Motion readout")."""

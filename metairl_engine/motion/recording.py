@@ -347,7 +347,7 @@ def segment(rec: Recording, settings: SegmentSettings = SegmentSettings()) -> li
     A segment runs from the minimum before its peak to the minimum after it (the recording's ends for the
     first and last); without instructions it is named by the nearest allowed direction to its peak.
     """
-    from scipy.signal import find_peaks  # only here: keeps `import metairl_engine.motion` light
+    from scipy.signal import find_peaks  # only here: keeps `import metairl_engine.motion.recording` light
 
     check(settings.issues())
     ox, oy = rec.bounds.centre if settings.origin is None else settings.origin

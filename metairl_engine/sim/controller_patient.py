@@ -25,8 +25,8 @@ import numpy as np
 
 from metairl_engine.errors import Issue, check, integer_issues
 from metairl_engine.grids import DIRECTION_NAMES, DIRECTIONS
-from metairl_engine.motion import NO_INSTRUCTION, Bounds, Recording
-from metairl_engine.patient import PLATE
+from metairl_engine.motion.recording import NO_INSTRUCTION, Bounds, Recording
+from metairl_engine.sim.patient import PLATE
 
 
 @dataclass(frozen=True)

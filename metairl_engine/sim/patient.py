@@ -19,7 +19,7 @@ import numpy as np
 
 from metairl_engine.errors import Issue, check, integer_issues
 from metairl_engine.grids import DIRECTION_NAMES, DIRECTIONS, grid_mdp, velocity_coords, velocity_state
-from metairl_engine.motion import NO_INSTRUCTION, Bounds, Recording
+from metairl_engine.motion.recording import NO_INSTRUCTION, Bounds, Recording
 from metairl_engine.planning import transition_matrix, value_iteration
 
 
