@@ -206,10 +206,10 @@ def seed(url: str, data_dir: Path) -> tuple[str, str, str]:
 
     from service.api.app import create_app
     from service.jobs.rewards import add_reward
-    from service.jobs.status import JobStatus
     from service.settings import Settings
     from service.store.ids import new_id
     from service.store.keys import add_key
+    from service.store.models.job_status import JobStatus
     from service.store.models.jobs import Job
 
     app = create_app(Settings(database_url=url, data_dir=data_dir))

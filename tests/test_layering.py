@@ -5,7 +5,9 @@
 - `worker` imports `service` and `metairl_engine`;
 - `metairl_client` imports nothing of ours (httpx, numpy and the standard library only);
 - `metairl_cli` may import anything; nothing of ours imports it;
-- the API process (everything `service.api.app` imports, transitively) never imports torch.
+- the API process (everything `service.api.app` imports, transitively) never imports torch;
+- inside `service`, rooms stacked bottom to top (`SERVICE_LAYERS`): a module imports only its own room and
+  the rooms below it, so nothing imports `service.api` but the API itself, and the store imports nothing above it.
 """
 
 from __future__ import annotations
@@ -29,6 +31,17 @@ ALLOWED: dict[str, set[str]] = {
     "metairl_cli": set(OURS),
 }
 CLIENT_THIRD_PARTY = {"httpx", "numpy"}
+# Inside `service`, bottom to top; a module belongs to the room of its longest matching prefix.
+SERVICE_LAYERS = (
+    ("service", "service.settings", "service.problems", "service.sizes"),
+    ("service.store.models",),
+    ("service.domain",),
+    ("service.files",),
+    ("service.store",),
+    ("service.jobs",),
+    ("service.results",),
+    ("service.api",),
+)
 
 
 def module_files() -> dict[str, Path]:
@@ -116,6 +129,30 @@ def test_each_package_imports_only_what_its_layer_allows(package: str) -> None:
     assert not broken, "\n".join(broken)
 
 
+def service_layer(module: str) -> int:
+    """The height of the service room ``module`` lies in (its longest matching prefix in `SERVICE_LAYERS`)."""
+    matches = [
+        (len(prefix), height)
+        for height, prefixes in enumerate(SERVICE_LAYERS)
+        for prefix in prefixes
+        if module == prefix or module.startswith(prefix + ".")
+    ]
+    return max(matches)[1]
+
+
+def test_service_rooms_import_only_downwards() -> None:
+    broken = sorted(
+        f"{module} imports {name} (above it)"
+        for module in MODULES
+        if module.startswith("service.")
+        for name in imports_of(module)
+        if (target := ours(name)) is not None
+        and target.startswith("service.")
+        and service_layer(target) > service_layer(module)
+    )
+    assert not broken, "\n".join(broken)
+
+
 def test_service_uses_only_numpy_only_engine_modules() -> None:
     broken = sorted(
         f"{module} loads {dep}"
@@ -162,4 +199,21 @@ def test_a_broken_rule_is_caught(tmp_path: Path) -> None:
             test_service_uses_only_numpy_only_engine_modules()
     finally:
         del MODULES["service.zz_bad"]
+        imports_of.cache_clear()
+
+
+@pytest.mark.parametrize(
+    ("module", "imported"),
+    [("service.store.zz_bad", "service.jobs.transitions"), ("service.files.zz_bad", "service.store.blobs")],
+)
+def test_an_upward_import_inside_service_is_caught(tmp_path: Path, module: str, imported: str) -> None:
+    """The room checker itself: the store importing the job lifecycle, or the files importing the store, is reported."""
+    MODULES[module] = bad = tmp_path / "zz_bad.py"
+    try:
+        bad.write_text(f"import {imported}\n")
+        imports_of.cache_clear()
+        with pytest.raises(AssertionError, match=re.escape(f"{module} imports {imported} (above it)")):
+            test_service_rooms_import_only_downwards()
+    finally:
+        del MODULES[module]
         imports_of.cache_clear()

@@ -16,10 +16,10 @@ from sqlalchemy import update
 from sqlalchemy.orm import Session, sessionmaker
 
 from metairl_engine.results import Progress
-from service.jobs.status import JobStatus
 from service.jobs.transitions import owned_by
 from service.settings import Settings
 from service.store.models.base import utcnow
+from service.store.models.job_status import JobStatus
 from service.store.models.jobs import PROGRESS_FIELDS, Job, JobEvent
 
 log = logging.getLogger(__name__)

@@ -24,10 +24,10 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from service.jobs.queue import CeleryJobQueue, EnqueueFailed, JobQueue
 from service.jobs.reaping import BATCH, RESENT, settle_lost, settle_stale, stale_running, waiting_queued
-from service.jobs.status import JobStatus
 from service.jobs.transitions import send_or_fail
 from service.settings import Settings, get_settings
 from service.store.models.base import utcnow
+from service.store.models.job_status import JobStatus
 from worker.context import sessions
 
 __all__ = ["BATCH", "RESENT", "Reaped", "reap", "reap_once", "resend_lost"]

@@ -20,11 +20,11 @@ from metairl_engine.config import FitConfig
 from metairl_engine.errors import Cancelled, InvalidInput
 from metairl_engine.fit import FitResult, TaskData, fit
 from service.jobs.rewards import add_reward
-from service.jobs.status import JobStatus
 from service.jobs.transitions import owned_by, transition
 from service.settings import Settings, WorkerDevice, get_settings
 from service.store.loaders import load_mdp, load_trajectories
 from service.store.models.demonstrators import Task
+from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job
 from worker.context import sessions
 from worker.memory import OverBudget, check_memory

@@ -17,9 +17,9 @@ from collections.abc import AsyncIterator
 from sqlalchemy.orm import Session, sessionmaker
 from starlette.concurrency import run_in_threadpool
 
-from service.api.schemas.jobs import JobEventOut
-from service.jobs.status import JobStatus
+from service.domain.jobs import JobEventOut
 from service.store import jobs
+from service.store.models.job_status import JobStatus
 
 MEDIA_TYPE = "text/event-stream"
 BATCH = 500

@@ -17,8 +17,8 @@ from metairl_engine import InvalidInput
 from metairl_engine.grids import DIRECTION_NAMES
 from metairl_engine.motion.force_plate import LENGTH_UNITS, loaded_span, wrench_cop
 from metairl_engine.motion.recording import NO_INSTRUCTION, canonical_instruction
-from service.api.schemas.common import UploadFormat
-from service.api.schemas.recordings import PlateIn
+from service.domain.common import UploadFormat
+from service.domain.recordings import PlateIn
 from service.files.c3d import C3dFile, file_problem, is_c3d, read_c3d
 from service.files.recording_samples import Samples, csv_samples, located, read_columns
 from service.problems import Unprocessable

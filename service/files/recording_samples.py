@@ -13,8 +13,8 @@ from pydantic import ValidationError
 from starlette.datastructures import FormData
 
 from metairl_engine import InvalidInput
-from service.api.schemas.common import UploadFormat
-from service.api.schemas.recordings import FileOptions, RecordingIn
+from service.domain.common import UploadFormat
+from service.domain.recordings import FileOptions, RecordingIn
 from service.files.csv_rows import MAX_ERRORS, csv_error, csv_rows
 from service.problems import Unprocessable, validation_errors
 

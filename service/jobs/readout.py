@@ -18,12 +18,12 @@ from sqlalchemy.orm import Session
 from metairl_engine.grids import DIRECTION_NAMES
 from metairl_engine.motion.kinematics import Movement, compare, comparison_png, movements, summarise
 from metairl_engine.motion.readout import BASELINE_CAVEAT, ring_centred
-from service.api.schemas.motion import UNITS
+from service.domain.motion import UNITS
 from service.jobs.rewards import metrics, visited_states
-from service.jobs.status import JobStatus
 from service.problems import Conflict
 from service.store.blobs import get_array
 from service.store.models.demonstrators import Demonstrator, Task
+from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, Reward
 from service.store.models.mdps import Mdp
 from service.store.recordings import demonstrator_recordings, load_recording

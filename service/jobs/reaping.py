@@ -13,9 +13,9 @@ from typing import NamedTuple
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from service.jobs.status import JobStatus
 from service.jobs.transitions import owned_by, touch_queued, transition
 from service.settings import Settings
+from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, JobEvent
 
 BATCH = 100

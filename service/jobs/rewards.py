@@ -26,7 +26,7 @@ from metairl_engine.motion.readout import BASELINE_CAVEAT
 if TYPE_CHECKING:
     from metairl_engine.distances import Interval as Bootstrapped
 
-from service.api.schemas.comparisons import (
+from service.domain.comparisons import (
     ComparedSide,
     ComparisonIn,
     ComparisonOut,
@@ -34,7 +34,7 @@ from service.api.schemas.comparisons import (
     Interval,
     OtherSide,
 )
-from service.api.schemas.rewards import (
+from service.domain.rewards import (
     ComparisonMatrix,
     Format,
     JobRewards,
@@ -47,7 +47,6 @@ from service.api.schemas.rewards import (
     reward_links,
 )
 from service.files import exports, images
-from service.jobs.status import JobStatus
 from service.problems import Conflict, Unprocessable
 from service.store.blobs import blob_sha256, get_array, put_array
 from service.store.ids import new_id
@@ -55,6 +54,7 @@ from service.store.keys import KeyedQuery, in_key_lab, key_select
 from service.store.loaders import load_mdp, load_trajectories, load_true_reward
 from service.store.models.blobs import Blob
 from service.store.models.demonstrators import Demonstration, Demonstrator, Task
+from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, Reward
 from service.store.models.mdps import Mdp
 from service.store.owned import get_owned, not_found

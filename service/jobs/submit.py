@@ -12,15 +12,15 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from metairl_engine.errors import Issue, check
-from service.api.schemas.jobs import JobIn
+from service.domain.jobs import JobIn
 from service.jobs.config import parse_config
-from service.jobs.status import JobStatus
 from service.settings import Settings
 from service.sizes import check_hidden, check_mdp_size
 from service.store.blobs import blob_sha256
 from service.store.ids import new_id
 from service.store.models.base import utcnow
 from service.store.models.demonstrators import Demonstration, Demonstrator, Task
+from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, JobEvent
 from service.store.models.mdps import Mdp
 

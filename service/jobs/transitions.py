@@ -15,10 +15,10 @@ from sqlalchemy import ColumnElement, update
 from sqlalchemy.orm import Session
 
 from service.jobs.queue import EnqueueFailed, JobQueue
-from service.jobs.status import JobStatus
 from service.jobs.webhooks import notify_job_end
 from service.problems import Conflict
 from service.store.models.base import utcnow
+from service.store.models.job_status import JobStatus
 from service.store.models.jobs import PROGRESS_FIELDS, Job, JobEvent
 
 

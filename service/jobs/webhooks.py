@@ -20,8 +20,8 @@ from urllib.parse import urlsplit
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from service.jobs.status import JobStatus
 from service.store.ids import new_id
+from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job
 from service.store.models.webhooks import Webhook, WebhookDelivery
 
@@ -86,7 +86,7 @@ def check_target(url: str, *, allow_private: bool) -> str | None:
 def notify_job_end(session: Session, job_id: str, status: JobStatus) -> None:
     """Add a pending delivery of ``job.<status>`` to each of the job's lab's webhooks that wants it
     (flushed with the caller's transaction, never committed here)."""
-    from service.api.schemas.jobs import JobOut  # the job as the API shows it: the body's ``data``
+    from service.domain.jobs import JobOut  # the job as the API shows it: the body's ``data``
 
     kind = event_type(status)
     lab_id = session.execute(select(Job.lab_id).where(Job.id == job_id)).scalar_one()

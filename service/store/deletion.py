@@ -12,10 +12,10 @@ from collections.abc import Collection, Iterable
 from sqlalchemy import delete, select
 from sqlalchemy.orm import Session
 
-from service.jobs.status import JobStatus
 from service.problems import Conflict
 from service.store.models.blobs import Blob
 from service.store.models.demonstrators import Demonstration, Demonstrator, Task, TrueReward
+from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, JobEvent, Reward
 from service.store.models.mdps import Mdp
 from service.store.models.recordings import Recording

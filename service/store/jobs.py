@@ -5,8 +5,8 @@ from __future__ import annotations
 from sqlalchemy import and_, bindparam, select
 from sqlalchemy.orm import Session
 
-from service.jobs.status import JobStatus
 from service.store.keys import KeyedQuery, in_key_lab, key_select
+from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, JobEvent
 from service.store.owned import get_owned
 from service.store.paging import PageParams, RowPage, paginate

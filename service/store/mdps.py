@@ -10,7 +10,7 @@ from sqlalchemy.orm import Session
 
 from metairl_engine import MDP, Layout
 from metairl_engine.grids import grid_mdp
-from service.api.schemas.mdps import ExplicitMdpIn, GridMdpIn
+from service.domain.mdps import ExplicitMdpIn, GridMdpIn
 from service.store.blobs import put_array
 from service.store.ids import new_id
 from service.store.models.blobs import Blob

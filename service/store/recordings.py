@@ -30,8 +30,8 @@ from metairl_engine.motion.recording import (
     SegmentSettings,
     demonstrations,
 )
-from service.api.schemas.mdps import GridMdpIn
-from service.api.schemas.recordings import RecordingOptions, RecordingTask
+from service.domain.mdps import GridMdpIn
+from service.domain.recordings import RecordingOptions, RecordingTask
 from service.files.recording_samples import Samples
 from service.problems import Conflict, Unprocessable
 from service.store import mdps

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from sqlalchemy import delete, func, select
 from sqlalchemy.orm import Session
 
+from service.domain.tasks import TaskTotals
 from service.problems import Unprocessable
 from service.store.blobs import put_array
 from service.store.ids import new_id
@@ -48,15 +48,6 @@ def create_task(
 def get_task(session: Session, task_id: str, *, lab_id: str) -> Task:
     """The lab's task, or 404."""
     return get_owned(session, Task, task_id, lab_id=lab_id, what="task")
-
-
-@dataclass(frozen=True)
-class TaskTotals:
-    """What a task's demonstrations add up to, and whether it has a true reward."""
-
-    n_trajectories: int = 0
-    n_steps: int = 0
-    has_true_reward: bool = False
 
 
 def task_totals(session: Session, rows: list[Task]) -> dict[str, TaskTotals]:

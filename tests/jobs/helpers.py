@@ -9,7 +9,7 @@ from typing import Any
 from fastapi.testclient import TestClient
 from sqlalchemy.orm import Session, sessionmaker
 
-from service.api.schemas.jobs import JobIn
+from service.domain.jobs import JobIn
 from service.jobs.submit import create_job
 from service.settings import Settings
 from service.store.models.demonstrators import Demonstrator

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from service.jobs.status import IllegalTransition, JobStatus
+from service.store.models.job_status import IllegalTransition, JobStatus
 
 Q, R, S, F, C = (
     JobStatus.QUEUED,

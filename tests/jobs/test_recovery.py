@@ -18,10 +18,10 @@ from sqlalchemy import func, select, update
 from metairl_engine.config import FitConfig
 from metairl_engine.results import FitResult
 from service.jobs.queue import CeleryJobQueue
-from service.jobs.status import JobStatus
 from service.jobs.transitions import claim
 from service.settings import Settings
 from service.store.models.base import utcnow
+from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, JobEvent, Reward
 from tests.jobs.helpers import QUICK, demonstrated_tasks, submit, unsent_job
 from worker.monitor import Monitor

@@ -16,10 +16,10 @@ import torch
 from sqlalchemy import func, select
 
 from service.jobs.queue import CeleryJobQueue
-from service.jobs.status import JobStatus
 from service.store.ids import new_id
 from service.store.models.base import utcnow
 from service.store.models.demonstrators import Task
+from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, Reward
 from tests.jobs.conftest import REPO, Stack, settings_environment
 from tests.jobs.helpers import (

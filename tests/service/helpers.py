@@ -9,7 +9,7 @@ from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
 from service.jobs.rewards import add_reward
-from service.jobs.status import JobStatus
+from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job
 
 CORRIDOR_NEXT_STATE = [[0, 1], [0, 2], [1, 2]]

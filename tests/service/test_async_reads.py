@@ -20,7 +20,7 @@ from sqlalchemy.pool import QueuePool
 
 from service.api.async_db import ENGINE
 from service.api.auth import KeyCache
-from service.api.schemas.jobs import JobOut
+from service.domain.jobs import JobOut
 from service.store.db import async_url
 from service.store.jobs import get_job
 from service.store.models.base import utcnow

@@ -9,9 +9,9 @@ from typing import Any
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
-from service.jobs.status import JobStatus
 from service.jobs.transitions import claim, transition
 from service.store.models.base import utcnow
+from service.store.models.job_status import JobStatus
 from service.store.models.jobs import JobEvent
 from tests.service.helpers import add_demonstrations, created, make_task
 

@@ -276,7 +276,7 @@ def test_another_lab_gets_404(
 
 def test_cutting_a_recording_never_imports_torch() -> None:
     code = (
-        "import sys, numpy as np; import service.store.recordings as r; from service.api.schemas.recordings import RecordingIn\n"
+        "import sys, numpy as np; import service.store.recordings as r; from service.domain.recordings import RecordingIn\n"
         "from service.files.recording_samples import json_samples\n"
         "t = np.arange(0, 8, 0.01); x = 0.15 * np.sin(np.pi * t / 2).clip(0) ** 2\n"
         "body = RecordingIn.model_validate({'bounds': {'x_min': -0.2, 'x_max': 0.2, 'y_min': -0.2, 'y_max': 0.2},"

@@ -14,10 +14,10 @@ from standardwebhooks import Webhook as Verifier
 from standardwebhooks.webhooks import WebhookVerificationError
 
 from service.api.app import create_app
-from service.jobs.status import JobStatus
 from service.jobs.transitions import claim, transition
 from service.jobs.webhooks import sign
 from service.settings import Settings
+from service.store.models.job_status import JobStatus
 from service.store.models.webhooks import WebhookDelivery
 from tests.service.helpers import PUBLIC_HOOK, add_demonstrations, created, make_task
 

@@ -14,8 +14,8 @@ from service.api.auth import LabDep
 from service.api.deps import JobDep, SessionDep
 from service.api.openapi import PROBLEM_RESPONSES
 from service.api.responses import NOT_SUCCEEDED, file_response
-from service.api.schemas.comparisons import EXAMPLES, ComparisonIn, ComparisonOut
-from service.api.schemas.rewards import ComparisonMatrix, KeyStates
+from service.domain.comparisons import EXAMPLES, ComparisonIn, ComparisonOut
+from service.domain.rewards import ComparisonMatrix, KeyStates
 from service.jobs import rewards
 
 router = APIRouter(tags=["comparisons"], responses=PROBLEM_RESPONSES)

@@ -12,7 +12,7 @@ from service.api.bodies import form_body, json_body, media_type, unsupported
 from service.api.deps import SessionDep
 from service.api.openapi import PROBLEM_RESPONSES, request_body
 from service.api.pagination import Page, PageDep
-from service.api.schemas.demonstrations import EXAMPLE_IN, DemonstrationOut, DemonstrationsIn
+from service.domain.demonstrations import EXAMPLE_IN, DemonstrationOut, DemonstrationsIn
 from service.files.csv_demonstrations import COLUMNS, parse_csv
 from service.problems import from_invalid_input
 from service.store import demonstrations

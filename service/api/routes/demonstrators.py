@@ -9,7 +9,7 @@ from service.api.deps import SessionDep
 from service.api.openapi import PROBLEM_RESPONSES
 from service.api.pagination import Page, PageDep
 from service.api.responses import DELETED
-from service.api.schemas.demonstrators import DemonstratorIn, DemonstratorOut
+from service.domain.demonstrators import DemonstratorIn, DemonstratorOut
 from service.store import demonstrators
 from service.store.deletion import delete_demonstrator as delete_demonstrator_rows
 

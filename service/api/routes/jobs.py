@@ -16,16 +16,16 @@ from service.api.deps import JobDep, LabDep, QueueDep, SessionDep, SettingsDep
 from service.api.openapi import PROBLEM_RESPONSES
 from service.api.pagination import Page, PageDep
 from service.api.responses import DELETED, NO_SUCH_JOB
-from service.api.schemas.jobs import JobEventOut, JobIn, JobOut
 from service.api.sse import MEDIA_TYPE, job_events, parse_last_event_id, wants_stream
+from service.domain.jobs import JobEventOut, JobIn, JobOut
 from service.jobs.queue import EnqueueFailed
-from service.jobs.status import JobStatus
 from service.jobs.submit import create_job
 from service.jobs.transitions import cancel
 from service.problems import BROKER_RETRY_AFTER_S, BrokerUnavailable
 from service.store import jobs
 from service.store.deletion import delete_job as delete_job_rows
 from service.store.deletion import discard_unsent_job
+from service.store.models.job_status import JobStatus
 from service.store.owned import not_found
 
 router = APIRouter(tags=["jobs"], responses=PROBLEM_RESPONSES)

@@ -16,7 +16,7 @@ from service.api.deps import SessionDep, SettingsDep
 from service.api.openapi import PROBLEM_RESPONSES, request_body
 from service.api.pagination import Page, PageDep
 from service.api.responses import DELETED
-from service.api.schemas.mdps import (
+from service.domain.mdps import (
     EXPLICIT_EXAMPLE,
     GRID_EXAMPLE,
     SPARSE_EXAMPLE,

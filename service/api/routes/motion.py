@@ -12,7 +12,7 @@ from service.api.auth import LabDep
 from service.api.deps import SessionDep
 from service.api.openapi import PROBLEM_RESPONSES
 from service.api.responses import file_response
-from service.api.schemas.motion import (
+from service.domain.motion import (
     COMPARISON_IN_EXAMPLES,
     MotionComparisonIn,
     MotionComparisonOut,

@@ -18,8 +18,8 @@ from service.api.deps import SessionDep
 from service.api.openapi import PROBLEM_RESPONSES, request_body
 from service.api.pagination import Page, PageDep
 from service.api.responses import file_response
-from service.api.schemas.motion import CutTrajectory, RecordingDemonstrationsOut
-from service.api.schemas.recordings import (
+from service.domain.motion import CutTrajectory, RecordingDemonstrationsOut
+from service.domain.recordings import (
     EXAMPLE_GRID_IN,
     EXAMPLE_IN,
     RecordingIn,

@@ -19,7 +19,7 @@ from service.api.auth import BearerDep, authorised_row, current_lab
 from service.api.deps import JobDep, SessionDep
 from service.api.openapi import PROBLEM_RESPONSES
 from service.api.responses import NOT_SUCCEEDED, file_response
-from service.api.schemas.rewards import Format, JobRewards, Overlay, Quantity, RewardValues
+from service.domain.rewards import Format, JobRewards, Overlay, Quantity, RewardValues
 from service.jobs import rewards
 
 router = APIRouter(tags=["rewards"], responses=PROBLEM_RESPONSES)

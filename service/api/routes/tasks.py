@@ -9,7 +9,7 @@ from service.api.deps import SessionDep
 from service.api.openapi import PROBLEM_RESPONSES
 from service.api.pagination import Page, PageDep
 from service.api.responses import DELETED
-from service.api.schemas.tasks import TaskIn, TaskOut, TrueRewardIn, TrueRewardOut
+from service.domain.tasks import TaskIn, TaskOut, TrueRewardIn, TrueRewardOut
 from service.problems import NotFound
 from service.store import tasks
 from service.store.blobs import blob_sha256, get_array

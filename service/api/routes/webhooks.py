@@ -13,7 +13,7 @@ from fastapi import APIRouter, Response, status
 from service.api.deps import LabDep, SessionDep, SettingsDep
 from service.api.openapi import PROBLEM_RESPONSES
 from service.api.pagination import Page, PageDep
-from service.api.schemas.webhooks import WebhookCreated, WebhookIn, WebhookOut
+from service.domain.webhooks import WebhookCreated, WebhookIn, WebhookOut
 from service.jobs.webhooks import check_target, new_secret
 from service.problems import Unprocessable
 from service.store import webhooks

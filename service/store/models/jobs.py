@@ -24,8 +24,8 @@ from sqlalchemy import (
 )
 from sqlalchemy.orm import Mapped, mapped_column
 
-from service.jobs.status import JobStatus
 from service.store.models.base import ID_LENGTH, Base, CreatedAtMixin, UTCDateTime, utcnow
+from service.store.models.job_status import JobStatus
 
 STATUS_VALUES = ", ".join(f"'{s.value}'" for s in JobStatus)
 

@@ -8,7 +8,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
-from service.api.schemas.common import Integer, Name, Resource
+from service.domain.common import Integer, Name, Resource
 from service.store.models.mdps import Mdp
 
 

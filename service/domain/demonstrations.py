@@ -7,7 +7,7 @@ from typing import Annotated
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
-from service.api.schemas.common import Integer, Resource, UploadFormat
+from service.domain.common import Integer, Resource, UploadFormat
 from service.store.models.demonstrators import Demonstration
 
 Index = Annotated[Integer, Field(ge=-(2**31), le=2**31 - 1)]

@@ -8,7 +8,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from service.api.schemas.common import Resource
+from service.domain.common import Resource
 from service.store.models.webhooks import Webhook, WebhookDelivery
 
 EventName = Literal["job.succeeded", "job.failed", "job.cancelled"]

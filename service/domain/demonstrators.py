@@ -5,7 +5,7 @@ from __future__ import annotations
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
-from service.api.schemas.common import Metadata, Name, Resource
+from service.domain.common import Metadata, Name, Resource
 from service.store.models.demonstrators import Demonstrator
 
 EXAMPLE_IN: JsonDict = {

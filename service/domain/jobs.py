@@ -8,8 +8,8 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 from sqlalchemy import Row
 
-from service.api.schemas.common import Resource
-from service.jobs.status import JobStatus
+from service.domain.common import Resource
+from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, JobEvent
 
 EXAMPLE_CONFIG: dict[str, Any] = {

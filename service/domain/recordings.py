@@ -13,7 +13,7 @@ from pydantic.json_schema import JsonDict, JsonValue
 
 from metairl_engine.motion.force_plate import MIN_FZ, PlateAxes
 from metairl_engine.motion.recording import Bounds, DiscretiseSettings, SegmentSettings
-from service.api.schemas.common import Resource, UploadFormat
+from service.domain.common import Resource, UploadFormat
 from service.store.models.recordings import Recording as RecordingRow
 
 PLATE_EXAMPLE: JsonDict = {"x_min": -0.2, "x_max": 0.2, "y_min": -0.2, "y_max": 0.2}

@@ -2,20 +2,29 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from datetime import datetime
 
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
-from service.api.schemas.common import Metadata, Name, Resource
+from service.domain.common import Metadata, Name, Resource
 from service.store.models.demonstrators import Task, TrueReward
-from service.store.tasks import TaskTotals
 
 EXAMPLE_IN: JsonDict = {
     "name": "reach forward",
     "mdp_id": "mdp_3q0f9b2yJm6nD1Kx8cT4wA",
     "metadata": {"instruction": "forward"},
 }
+
+
+@dataclass(frozen=True)
+class TaskTotals:
+    """What a task's demonstrations add up to, and whether it has a true reward."""
+
+    n_trajectories: int = 0
+    n_steps: int = 0
+    has_true_reward: bool = False
 
 
 class TaskIn(BaseModel):
