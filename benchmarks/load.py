@@ -205,7 +205,7 @@ def seed(url: str, data_dir: Path) -> tuple[str, str, str]:
     from sqlalchemy.orm import Session
 
     from service.api.app import create_app
-    from service.jobs.rewards import add_reward
+    from service.results.rewards import add_reward
     from service.settings import Settings
     from service.store.ids import new_id
     from service.store.keys import add_key

@@ -19,8 +19,8 @@ from sqlalchemy.orm import Session, sessionmaker
 from metairl_engine.config import FitConfig
 from metairl_engine.errors import Cancelled, InvalidInput
 from metairl_engine.fit import FitResult, TaskData, fit
-from service.jobs.rewards import add_reward
 from service.jobs.transitions import owned_by, transition
+from service.results.rewards import add_reward
 from service.settings import Settings, WorkerDevice, get_settings
 from service.store.loaders import load_mdp, load_trajectories
 from service.store.models.demonstrators import Task

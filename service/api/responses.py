@@ -6,7 +6,7 @@ from typing import Any
 
 from fastapi import Response
 
-from service.jobs.rewards import Download
+from service.results.downloads import Download
 
 NOT_SUCCEEDED: dict[int | str, dict[str, Any]] = {409: {"description": "The job has not succeeded."}}
 DELETED: dict[int | str, dict[str, Any]] = {

@@ -8,7 +8,7 @@ import numpy as np
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
-from service.jobs.rewards import add_reward
+from service.results.rewards import add_reward
 from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job
 

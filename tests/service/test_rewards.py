@@ -20,7 +20,8 @@ from sqlalchemy import event
 from metairl_engine.mdp import Layout
 from service.api.async_db import ENGINE
 from service.files.images import heatmap_pixel_size, heatmap_png
-from service.jobs.rewards import download, reward_context
+from service.results.downloads import download
+from service.results.rewards import reward_context
 from service.store.models.jobs import Reward
 from tests.service.helpers import add_demonstrations, created, fitted_job, make_mdp, make_task
 
@@ -307,7 +308,7 @@ def test_npy_and_json_come_from_one_statement_with_the_key_check_and_the_same_an
 ) -> None:
     """npy and json are served from the stored bytes in one statement on the async engine, the API-key check
     included (recording the key's use, at most once a minute, aside) and nothing on the sync engine; the bytes,
-    ETag and file name equal those of `service.jobs.rewards.download`, which builds them from the loaded array."""
+    ETag and file name equal those of `service.results.downloads.download`, which builds them from the loaded array."""
     statements: list[str] = []
     sync_statements: list[str] = []
 

@@ -1,6 +1,6 @@
 """Comparisons (docs/api.md, "Comparisons"): two rewards, a reward and a true reward or values; a job's Pearson matrix; key states.
 
-Thin routes over `service.jobs.rewards`; plain ``def`` routes, so FastAPI runs them (and the matrix PNG) in its
+Thin routes over `service.results`; plain ``def`` routes, so FastAPI runs them (and the matrix PNG) in its
 thread pool.
 """
 
@@ -16,7 +16,8 @@ from service.api.openapi import PROBLEM_RESPONSES
 from service.api.responses import NOT_SUCCEEDED, file_response
 from service.domain.comparisons import EXAMPLES, ComparisonIn, ComparisonOut
 from service.domain.rewards import ComparisonMatrix, KeyStates
-from service.jobs import rewards
+from service.results import comparisons, downloads, rewards
+from service.results.key_states import reward_key_states
 
 router = APIRouter(tags=["comparisons"], responses=PROBLEM_RESPONSES)
 
@@ -34,7 +35,7 @@ def create_comparison(
     body: Annotated[ComparisonIn, Body(openapi_examples=EXAMPLES)], session: SessionDep, lab: LabDep
 ) -> ComparisonOut:
     """Pearson, Spearman (contract) and EPIC distance on all states or on the demonstrated ones."""
-    return rewards.compare(session, body, lab_id=lab.id)
+    return comparisons.compare(session, body, lab_id=lab.id)
 
 
 @router.get(
@@ -56,9 +57,9 @@ def comparison_matrix(
 ) -> ComparisonMatrix | Response:
     """Pearson r between the baseline and every task reward, and between the task rewards."""
     rewards.require_succeeded(job)
-    matrix = rewards.comparison_matrix(session, job)
+    matrix = comparisons.comparison_matrix(session, job)
     if format == "png":
-        return file_response(rewards.matrix_download(session, job, matrix))
+        return file_response(downloads.matrix_download(session, job, matrix))
     return matrix
 
 
@@ -75,4 +76,4 @@ def key_states(
 ) -> KeyStates:
     """The paper's key states: largest |task reward − baseline| first, with (x, y, channel) on a layout."""
     ctx = rewards.reward_context(session, reward_id, lab_id=lab.id)
-    return rewards.reward_key_states(session, ctx, top=top)
+    return reward_key_states(session, ctx, top=top)

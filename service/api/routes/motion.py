@@ -18,8 +18,8 @@ from service.domain.motion import (
     MotionComparisonOut,
     MotionSummaryOut,
 )
-from service.jobs import readout
-from service.jobs.rewards import Download
+from service.results import readout
+from service.results.downloads import Download
 from service.store.demonstrators import get_demonstrator
 
 router = APIRouter(tags=["motion"], responses=PROBLEM_RESPONSES)

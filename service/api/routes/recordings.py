@@ -28,7 +28,7 @@ from service.domain.recordings import (
 )
 from service.files.force_plates import file_samples
 from service.files.recording_samples import form_options, json_samples
-from service.jobs.rewards import Download
+from service.results.downloads import Download
 from service.store import recordings
 from service.store.demonstrators import get_demonstrator
 

@@ -1,6 +1,6 @@
 """Learned rewards (docs/api.md, "Rewards"): a succeeded job's rewards, and one reward, value function or policy as a file.
 
-Thin routes over `service.jobs.rewards`. The download route runs on the event loop: npy and json come from the
+Thin routes over `service.results`. The download route runs on the event loop: npy and json come from the
 stored bytes, read with the key check in one statement on the async engine (service/api/async_db.py); csv and
 png, and json's encoding, run in FastAPI's thread pool (``run_in_threadpool``), so building a large file or
 drawing a heatmap (up to ~2 s at 80,000 states) never blocks the loop.
@@ -20,7 +20,7 @@ from service.api.deps import JobDep, SessionDep
 from service.api.openapi import PROBLEM_RESPONSES
 from service.api.responses import NOT_SUCCEEDED, file_response
 from service.domain.rewards import Format, JobRewards, Overlay, Quantity, RewardValues
-from service.jobs import rewards
+from service.results import downloads, rewards
 
 router = APIRouter(tags=["rewards"], responses=PROBLEM_RESPONSES)
 
@@ -76,7 +76,7 @@ async def download_reward(
     if_none_match: Annotated[str | None, Header(description="An ETag from an earlier download.")] = None,
 ) -> Response:
     """The values of one learned reward as a file (or a task's value function or policy)."""
-    if format in rewards.STORED_FORMATS and overlay == "none":
+    if format in downloads.STORED_FORMATS and overlay == "none":
         return file_response(
             await _stored_download(
                 request, credentials, reward_id, fmt=format, quantity=quantity, if_none_match=if_none_match
@@ -104,18 +104,18 @@ async def _stored_download(
     fmt: Format,
     quantity: Quantity,
     if_none_match: str | None,
-) -> rewards.Download:
+) -> downloads.Download:
     """npy or json from the stored bytes: the key check, the reward (in the key's lab), its names and the blob's
     SHA-256 and bytes are one statement. With ``If-None-Match`` the bytes are left out of it and read by a
     second only when the client's copy is out of date."""
-    query = rewards.keyed_stored_file(quantity, with_data=not if_none_match)
+    query = downloads.keyed_stored_file(quantity, with_data=not if_none_match)
     found = await authorised_row(request, credentials, query, reward_id=reward_id)
-    stored = rewards.stored_file(found, reward_id, fmt=fmt, quantity=quantity)
-    if rewards.etag_matches(if_none_match, stored.etag):
+    stored = downloads.stored_file(found, reward_id, fmt=fmt, quantity=quantity)
+    if downloads.etag_matches(if_none_match, stored.etag):
         return stored.answer(None)
     if if_none_match:
         async with connection(request) as db:
-            data = (await db.execute(rewards.BLOB_DATA, {"blob_id": found.blob_id})).scalar_one()
+            data = (await db.execute(downloads.BLOB_DATA, {"blob_id": found.blob_id})).scalar_one()
     else:
         data = found.blob_data
     if fmt == "npy":  # a header and the stored bytes: no work worth a thread
@@ -132,12 +132,12 @@ def _made_download(
     quantity: Quantity,
     overlay: Overlay,
     if_none_match: str | None,
-) -> rewards.Download:
+) -> downloads.Download:
     """csv, png, or a json or npy with an overlay (422): made from the loaded array in a thread of the pool, on
     the sync path (`current_lab`, a session of its own)."""
     lab = current_lab(request, credentials)
     with request.app.state.sessionmaker() as session:
         ctx = rewards.reward_context(session, reward_id, lab_id=lab.id)
-        return rewards.download(
+        return downloads.download(
             session, ctx, fmt=fmt, quantity=quantity, overlay=overlay, if_none_match=if_none_match
         )

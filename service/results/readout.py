@@ -19,8 +19,9 @@ from metairl_engine.grids import DIRECTION_NAMES
 from metairl_engine.motion.kinematics import Movement, compare, comparison_png, movements, summarise
 from metairl_engine.motion.readout import BASELINE_CAVEAT, ring_centred
 from service.domain.motion import UNITS
-from service.jobs.rewards import metrics, visited_states
 from service.problems import Conflict
+from service.results.engine_modules import metrics
+from service.results.key_states import visited_states
 from service.store.blobs import get_array
 from service.store.models.demonstrators import Demonstrator, Task
 from service.store.models.job_status import JobStatus

@@ -1,0 +1,257 @@
+"""Files of a reward, value function or policy (json, npy, csv, png) and of the comparison matrix, with their ETags;
+the npy and json downloads also straight from the stored bytes (`keyed_stored_file`, read on the event loop)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from functools import cache
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from sqlalchemy import ColumnElement, Row, and_, bindparam, select
+from sqlalchemy.orm import Session
+
+if TYPE_CHECKING:
+    pass
+
+from service.domain.rewards import (
+    ComparisonMatrix,
+    Format,
+    Overlay,
+    Quantity,
+)
+from service.files import exports, images
+from service.problems import Conflict, Unprocessable
+from service.results.rewards import RewardContext, baseline_has_no, blob_id_of
+from service.store.blobs import blob_sha256, get_array
+from service.store.keys import KeyedQuery, in_key_lab, key_select
+from service.store.loaders import load_trajectories
+from service.store.models.blobs import Blob
+from service.store.models.demonstrators import Demonstration, Demonstrator, Task
+from service.store.models.jobs import Job, Reward
+from service.store.owned import not_found
+
+MEDIA_TYPES: dict[str, str] = {
+    "json": "application/json",
+    "npy": "application/octet-stream",
+    "csv": "text/csv; charset=utf-8",
+    "png": "image/png",
+}
+
+
+INLINE_FORMATS = {"json", "png"}
+"""Formats a browser can show: sent ``inline``; the others as ``attachment``."""
+
+
+@dataclass(frozen=True)
+class Download:
+    """A file to send, or (``content`` None) a 304 because the client's copy has this ETag."""
+
+    content: bytes | None
+    media_type: str
+    filename: str
+    disposition: str
+    etag: str | None
+
+
+def download(
+    session: Session,
+    ctx: RewardContext,
+    *,
+    fmt: Format,
+    quantity: Quantity,
+    overlay: Overlay,
+    if_none_match: str | None,
+) -> Download:
+    """One reward, value function or policy as `fmt`; the ETag is checked before any array is read or drawn.
+
+    The ETag hashes the stored blob's SHA-256 with everything else the bytes depend on (reward id, format,
+    quantity, and for csv/png the layout; for png the title and the demonstration batches drawn).
+    """
+    blob_id = blob_id_of(ctx.row, quantity)
+    if overlay != "none" and fmt != "png":
+        raise Unprocessable(
+            "overlay draws on a heatmap: use it with format=png.",
+            errors=[{"pointer": "", "parameter": "overlay", "message": "only applies to format=png"}],
+        )
+    variant: list[str] = [ctx.row.id, fmt, quantity]
+    if fmt in ("csv", "png"):
+        variant.append(json.dumps(ctx.mdp.layout, sort_keys=True))
+    if fmt == "png":
+        _check_drawable(ctx, quantity)
+        variant += [_title(ctx, quantity), ",".join(_demonstration_ids(session, ctx.task_ids, overlay))]
+    etag = exports.etag_for(blob_sha256(session, blob_id), *variant)
+    filename = exports.download_filename(
+        demonstrator=ctx.demonstrator.name,
+        task=ctx.task.name if ctx.task else None,
+        quantity=quantity,
+        ext=fmt,
+    )
+    disposition = "inline" if fmt in INLINE_FORMATS else "attachment"
+    if etag_matches(if_none_match, etag):
+        return Download(None, MEDIA_TYPES[fmt], filename, disposition, etag)
+    values = get_array(session, blob_id)
+    if fmt == "npy":
+        content = exports.to_npy(values)
+    elif fmt == "csv":
+        content = exports.to_csv(values, layout=ctx.layout, quantity=quantity).encode()
+    elif fmt == "json":
+        content = exports.to_json(values, reward_id=ctx.row.id, quantity=quantity).encode()
+    else:
+        content = _heatmap(session, ctx, values, quantity=quantity, overlay=overlay)
+    return Download(content, MEDIA_TYPES[fmt], filename, disposition, etag)
+
+
+STORED_FORMATS = {"npy", "json"}
+"""Formats made from the stored bytes and names alone (no MDP, no drawing): `keyed_stored_file` reads them."""
+
+
+@cache
+def keyed_stored_file(quantity: Quantity, *, with_data: bool) -> KeyedQuery:
+    """The key check (`service.store.keys.key_select`) and what an npy or json download of reward
+    ``:reward_id`` needs, in one statement: the reward's id and task (``reward_id``, ``reward_task_id``), the
+    names its file is called by (``task_name``, ``demonstrator_name``) and the `quantity` blob's ``blob_id``,
+    ``blob_sha256``, ``blob_dtype``, ``blob_shape`` and, with `with_data`, its bytes ``blob_data``; all NULL
+    unless the reward is in the key's lab. Built once per quantity and with or without the bytes."""
+    blob_column = {
+        "reward": Reward.reward_blob_id,
+        "value": Reward.value_blob_id,
+        "policy": Reward.policy_blob_id,
+    }[quantity]
+    columns: list[ColumnElement[Any]] = [
+        Reward.id.label("reward_id"),
+        Reward.task_id.label("reward_task_id"),
+        Task.name.label("task_name"),
+        Demonstrator.name.label("demonstrator_name"),
+        Blob.id.label("blob_id"),
+        Blob.sha256.label("blob_sha256"),
+        Blob.dtype.label("blob_dtype"),
+        Blob.shape.label("blob_shape"),
+    ]
+    if with_data:
+        columns.append(Blob.data.label("blob_data"))
+    return (
+        key_select()
+        .add_columns(*columns)
+        .outerjoin(Reward, and_(Reward.id == bindparam("reward_id"), in_key_lab(Reward.lab_id)))
+        .outerjoin(Job, Job.id == Reward.job_id)
+        .outerjoin(Demonstrator, Demonstrator.id == Job.demonstrator_id)
+        .outerjoin(Task, Task.id == Reward.task_id)
+        .outerjoin(Blob, Blob.id == blob_column)
+    )
+
+
+BLOB_DATA = select(Blob.data).where(Blob.id == bindparam("blob_id"))
+"""The stored bytes of blob ``:blob_id`` (for a stored download whose first read left them out)."""
+
+
+@dataclass(frozen=True)
+class StoredFile:
+    """An npy or json download of a stored array, from a `keyed_stored_file` row (`stored_file` checks it): the
+    same ETag and file name as `download` gives, and the file made from the stored bytes as they are."""
+
+    row: Row[Any]
+    fmt: Format
+    quantity: Quantity
+    etag: str
+    filename: str
+
+    def answer(self, content: bytes | None) -> Download:
+        """The download with `content` (None: a 304, the client's copy has this ETag)."""
+        disposition = "inline" if self.fmt in INLINE_FORMATS else "attachment"
+        return Download(content, MEDIA_TYPES[self.fmt], self.filename, disposition, self.etag)
+
+    def content(self, data: bytes) -> bytes:
+        """The file of the stored bytes `data`: npy sends them behind a header; json lists the values (this
+        costs time on a large array, so the async route runs it in a thread)."""
+        dtype, shape = self.row.blob_dtype, self.row.blob_shape
+        if self.fmt == "npy":
+            return exports.npy_from_stored(data, dtype=dtype, shape=shape)
+        values = np.frombuffer(data, dtype=np.dtype(dtype)).reshape(shape)
+        return exports.to_json(values, reward_id=self.row.reward_id, quantity=self.quantity).encode()
+
+
+def stored_file(found: Row[Any], reward_id: str, *, fmt: Format, quantity: Quantity) -> StoredFile:
+    """The download a `keyed_stored_file` row describes; 404 if the key's lab has no reward `reward_id`, 409
+    for the baseline's (absent) value function or policy, as `download` answers."""
+    if fmt not in STORED_FORMATS:
+        raise ValueError(f"stored files are {sorted(STORED_FORMATS)}, not {fmt!r}")
+    if found.reward_id is None:
+        raise not_found("reward", reward_id)
+    if found.blob_id is None:
+        raise baseline_has_no(quantity, found.reward_id)
+    filename = exports.download_filename(
+        demonstrator=found.demonstrator_name,
+        task=found.task_name if found.reward_task_id else None,
+        quantity=quantity,
+        ext=fmt,
+    )
+    etag = exports.etag_for(found.blob_sha256, found.reward_id, fmt, quantity)
+    return StoredFile(found, fmt, quantity, etag, filename)
+
+
+def etag_matches(if_none_match: str | None, etag: str) -> bool:
+    """Whether an ``If-None-Match`` header names `etag` (or is ``*``); weak tags compare by value (RFC 9110)."""
+    if not if_none_match:
+        return False
+    tags = {tag.strip().removeprefix("W/") for tag in if_none_match.split(",")}
+    return "*" in tags or etag in tags
+
+
+def matrix_download(session: Session, job: Job, matrix: ComparisonMatrix) -> Download:
+    """The comparison matrix drawn as an annotated PNG, titled with the demonstrator's name."""
+    demonstrator = session.get_one(Demonstrator, job.demonstrator_id)
+    png = images.matrix_png(
+        np.asarray(matrix.matrix), labels=matrix.labels, title=f"Pearson r — {demonstrator.name}"
+    )
+    filename = exports.download_filename(
+        demonstrator=demonstrator.name, task="all tasks", quantity="pearson", ext="png"
+    )
+    return Download(png, MEDIA_TYPES["png"], filename, "inline", etag=None)
+
+
+def _check_drawable(ctx: RewardContext, quantity: Quantity) -> None:
+    """409 unless a heatmap can be drawn: the MDP needs a layout, and a policy has no single value per state."""
+    if ctx.layout is None:
+        raise Conflict(
+            f"MDP {ctx.mdp.id} has no layout, so its states cannot be drawn as a picture; download "
+            "format=csv, npy or json, or create the MDP with a layout (width, height, channels)."
+        )
+    if quantity == "policy":
+        raise Conflict(
+            "A policy has one probability per action in each state, which one heatmap cannot show; "
+            "download it as npy, csv or json, or draw quantity=value."
+        )
+
+
+def _title(ctx: RewardContext, quantity: Quantity) -> str:
+    """The heatmap's title: ``task — demonstrator``, naming the quantity unless it is the reward."""
+    return ctx.label if quantity == "reward" else f"{ctx.label} ({quantity})"
+
+
+def _demonstration_ids(session: Session, task_ids: list[str], overlay: Overlay) -> list[str]:
+    """Ids of the demonstration batches an overlay draws (none without an overlay)."""
+    if overlay == "none":
+        return []
+    return list(
+        session.execute(
+            select(Demonstration.id)
+            .where(Demonstration.task_id.in_(task_ids))
+            .order_by(Demonstration.created_at, Demonstration.id)
+        ).scalars()
+    )
+
+
+def _heatmap(
+    session: Session, ctx: RewardContext, values: np.ndarray, *, quantity: Quantity, overlay: Overlay
+) -> bytes:
+    """The PNG heatmap, with the demonstrated trajectories behind the reward drawn on it for overlay=demos."""
+    layout = ctx.layout
+    assert layout is not None  # _check_drawable ran first
+    trajectories = None
+    if overlay == "demos":
+        trajectories = [t.states for task_id in ctx.task_ids for t in load_trajectories(session, task_id)]
+    return images.heatmap_png(
+        values, layout=layout, title=_title(ctx, quantity), trajectories=trajectories, colorbar_label=quantity
+    )
