@@ -6,7 +6,9 @@ loading the engine. Field docstrings are the reference documentation of each set
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+import operator
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any, Literal
 
 from metairl_engine.errors import InvalidInput, Issue, check
@@ -16,6 +18,31 @@ Sharing = Literal["none", "l2", "huber", "std", "entropy"]
 SharingStates = Literal["all", "visited"]
 Backup = Literal["max", "logsumexp", "bgi"]
 TabularInputs = Literal["coordinates", "one_hot"]
+
+MAX_SEED = 2**63 - 1
+"""The largest seed (torch and numpy take 64-bit seeds)."""
+
+BOUNDS: dict[str, tuple[Callable[[Any, Any], bool], str]] = {
+    "ge": (operator.ge, "≥"),
+    "gt": (operator.gt, ">"),
+    "le": (operator.le, "≤"),
+    "lt": (operator.lt, "<"),
+}
+"""The comparisons a numeric setting's bounds may use (pydantic's names), and how a message writes them."""
+
+
+def bounds(**limits: float) -> dict[str, float]:
+    """A field's ``metadata``: its allowed range as ``ge``/``gt``/``le``/``lt`` limits, checked by `FitConfig`
+    and published as the setting's range in the API's schema."""
+    assert set(limits) <= set(BOUNDS), limits
+    return limits
+
+
+def out_of_bounds(value: float, limits: Mapping[str, float]) -> str | None:
+    """A ``must be ≥ 0 and < 1`` message when ``value`` breaks ``limits``; None when it is within them."""
+    if all(BOUNDS[k][0](value, limit) for k, limit in limits.items()):
+        return None
+    return "must be " + " and ".join(f"{BOUNDS[k][1]} {limit}" for k, limit in limits.items())
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -31,14 +58,14 @@ class FitConfig:
     no baseline network is learned and the result's baseline is the mean of the task rewards, a summary
     rather than an estimate of the inherent reward."""
 
-    sharing_weight: float = 1.0
+    sharing_weight: float = field(default=1.0, metadata=bounds(ge=0))
     """Weight of the sharing loss relative to the IRL loss; both are per-task means (NLL per demonstrated
     step, sharing loss per compared state), so the weight does not depend on the numbers of states or steps."""
 
     sharing_states: SharingStates = "all"
     """Evaluate the sharing loss on all states or only on states visited by the task's demonstrations."""
 
-    sharing_blocks: int = 0
+    sharing_blocks: int = field(default=0, metadata=bounds(ge=0, le=1024))
     """With ``sharing_states="all"``: the states are split at random into this many fixed blocks and each
     step compares r_i with r_b on one block, in turn, so every state is compared once every this many steps.
     The per-state mean over a block is an unbiased estimate of the mean over all states at a fraction of the
@@ -64,39 +91,39 @@ class FitConfig:
     backup: Backup = "max"
     """Bellman backup V(s) from Q(s, ·): max (paper eq. 7), logsumexp (MaxEnt) or BGI's (1/k)·logsumexp(k·Q)."""
 
-    bgi_k: float = 10.0
+    bgi_k: float = field(default=10.0, metadata=bounds(gt=0))
     """Sharpness k of the BGI backup (only with ``backup="bgi"``)."""
 
-    confidence: float = 1.0
+    confidence: float = field(default=1.0, metadata=bounds(gt=0))
     """The paper's b: demonstrated actions follow softmax(b·Q(s, ·)) (paper eq. 9–10)."""
 
     hidden: tuple[int, ...] = (100, 50, 25)
     """Hidden layer widths of each VR network and of the baseline network."""
 
-    fourier_octaves: int = 0
+    fourier_octaves: int = field(default=0, metadata=bounds(ge=0, le=8))
     """Input encoding: each state feature x also enters the networks as sin(2^l·π·x), cos(2^l·π·x) for
     l < this many octaves (0: raw features; no effect on tabular MDPs). Lets the MLPs represent hills."""
 
-    learning_rate: float = 0.01
+    learning_rate: float = field(default=0.01, metadata=bounds(gt=0, le=1))
     """Adam's learning rate (paper: 0.01)."""
 
-    max_steps: int = 1000
+    max_steps: int = field(default=1000, metadata=bounds(ge=1, le=100_000))
     """Upper bound on optimisation steps (the held-out rule usually stops earlier without sharing)."""
 
-    tolerance: float = 1e-6
+    tolerance: float = field(default=1e-6, metadata=bounds(ge=0))
     """Stop when the relative change of the training loss per step stays below this for 10 steps in a row."""
 
-    holdout_fraction: float = 0.2
+    holdout_fraction: float = field(default=0.2, metadata=bounds(ge=0, lt=1))
     """Fraction of each task's demonstrated steps held out to choose the stopping step by held-out
     likelihood, never by the true reward: the kept parameters are those of the last step whose held-out
     NLL is within one standard error of the best (see fit.HeldOutStopper). 0 disables the hold-out; the
     fit then runs on all steps to ``max_steps`` or ``tolerance``."""
 
-    patience: int = 200
+    patience: int = field(default=200, metadata=bounds(ge=0))
     """Stop once the held-out NLL has made no meaningful progress (a new best by more than one standard error
     of the last) for this many steps (only with a hold-out; 0: never; `fit.HeldOutStopper`)."""
 
-    ensemble: int = 0
+    ensemble: int = field(default=0, metadata=bounds(ge=0, le=16))
     """Members K of the ensemble: each reward is the mean of K fits run side by side as one batch of T·K
     networks, member k with its own initial weights, holding out fold k of each task's steps (so together
     they learn from every step); the step kept is the one their held-out folds together choose (a K-fold
@@ -104,7 +131,7 @@ class FitConfig:
     the variance of a reward learned from a few demonstrations; a step costs about K times as much.
     0 (default): K = 4 for small fits, fewer as tasks × states grow, 1 from 32,768 (`ensemble_size`)."""
 
-    seed: int = 0
+    seed: int = field(default=0, metadata=bounds(ge=0, le=MAX_SEED))
     """Seed of every random choice (initial weights, hold-out split): same seed, same result."""
 
     def __post_init__(self) -> None:
@@ -114,7 +141,10 @@ class FitConfig:
             if not ok:
                 issues.append(Issue(f"/config/{name}", message))
 
-        need(self.sharing_weight >= 0, "sharing_weight", "must be ≥ 0")
+        for f in fields(self):
+            problem = out_of_bounds(getattr(self, f.name), f.metadata) if f.metadata else None
+            if problem:
+                issues.append(Issue(f"/config/{f.name}", problem))
         need(
             self.baseline_features is None
             or (
@@ -125,19 +155,8 @@ class FitConfig:
             "baseline_features",
             "must be null or distinct feature column indices ≥ 0",
         )
-        need(self.bgi_k > 0, "bgi_k", "must be > 0")
-        need(self.confidence > 0, "confidence", "must be > 0")
         need(all(isinstance(h, int) and h > 0 for h in self.hidden), "hidden", "must be positive integers")
         need(len(self.hidden) <= 8, "hidden", "at most 8 hidden layers")
-        need(0 <= self.fourier_octaves <= 8, "fourier_octaves", "must be in 0..8")
-        need(0 < self.learning_rate <= 1, "learning_rate", "must be in (0, 1]")
-        need(1 <= self.max_steps <= 100_000, "max_steps", "must be in 1..100000")
-        need(self.tolerance >= 0, "tolerance", "must be ≥ 0")
-        need(0 <= self.holdout_fraction < 1, "holdout_fraction", "must be in [0, 1)")
-        need(self.patience >= 0, "patience", "must be ≥ 0")
-        need(0 <= self.ensemble <= 16, "ensemble", "must be in 0..16 (0: automatic)")
-        need(0 <= self.sharing_blocks <= 1024, "sharing_blocks", "must be in 0..1024 (0: automatic)")
-        need(self.seed >= 0, "seed", "must be ≥ 0")
         check(issues)
 
     def to_dict(self) -> dict[str, Any]:
@@ -160,6 +179,21 @@ class FitConfig:
             if isinstance(kwargs.get(name), list):
                 kwargs[name] = tuple(kwargs[name])
         return cls(**kwargs)
+
+
+def baseline_column_issues(config: FitConfig, *, n_columns: int | None) -> list[Issue]:
+    """Why ``baseline_features`` names columns the baseline cannot see when the networks' inputs have
+    ``n_columns`` columns (None: the paper's one-hot inputs, no columns); checked at submission and by the fit."""
+    if config.baseline_features is None or (
+        n_columns is not None and max(config.baseline_features) < n_columns
+    ):
+        return []
+    what = (
+        "the networks see a one-hot of each state"
+        if n_columns is None
+        else f"they see {n_columns} feature columns"
+    )
+    return [Issue("/config/baseline_features", f"names columns the baseline cannot see: {what}")]
 
 
 ENSEMBLE_BUDGET = 2**15

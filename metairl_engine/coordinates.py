@@ -21,15 +21,12 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import shortest_path
 
-from metairl_engine.grids import layout_features
+from metairl_engine.grids import GRAPH_DIMENSIONS, layout_features
 from metairl_engine.mdp import MDP
 from metairl_engine.planning import transition_matrix
 
 LANDMARKS = 64
 """States whose hop distances to every state the graph embedding measures (all of them on smaller MDPs)."""
-
-DIMENSIONS = 2
-"""Coordinates recovered from the transition graph (the leading ones of the landmark MDS)."""
 
 
 def state_coordinates(mdps: Sequence[MDP], *, seed: int) -> np.ndarray | None:
@@ -68,7 +65,7 @@ def graph_coordinates(mdps: Sequence[MDP], *, seed: int) -> np.ndarray | None:
     m = len(landmarks)
     centring = np.eye(m) - 1.0 / m
     values, vectors = np.linalg.eigh(-0.5 * centring @ between @ centring)
-    order = np.argsort(values)[::-1][:DIMENSIONS]
+    order = np.argsort(values)[::-1][:GRAPH_DIMENSIONS]
     keep = order[values[order] > 1e-9 * max(values.max(), 1e-300)]
     if keep.size == 0:
         return None

@@ -24,7 +24,7 @@ import torch
 import torch.nn.functional as F
 
 from metairl_engine.backups import QRows, backup, successor_pairs
-from metairl_engine.config import FitConfig, ensemble_size, sharing_block_count
+from metairl_engine.config import FitConfig, baseline_column_issues, ensemble_size, sharing_block_count
 from metairl_engine.coordinates import state_coordinates
 from metairl_engine.demos import validate_trajectories
 from metairl_engine.errors import Cancelled, InvalidInput, Issue, check
@@ -285,12 +285,9 @@ def _encode(features: np.ndarray, config: FitConfig) -> torch.Tensor:
 
 def _baseline_columns(config: FitConfig, features: np.ndarray | None) -> list[int] | None:
     """The feature columns the baseline network sees (`FitConfig.baseline_features`); None: all."""
+    check(baseline_column_issues(config, n_columns=None if features is None else features.shape[1]))
     if config.baseline_features is None:
         return None
-    n = 0 if features is None else features.shape[1]
-    if features is None or max(config.baseline_features) >= n:
-        what = "the MDP has no state features" if features is None else f"the MDP has {n} feature columns"
-        check([Issue("/config/baseline_features", f"names columns the baseline cannot see: {what}")])
     return list(config.baseline_features)
 
 

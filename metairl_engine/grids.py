@@ -141,6 +141,23 @@ def _cell_targets(width: int, height: int, disp: np.ndarray) -> np.ndarray:
     return np.where(inside, ny * width + nx, (y * width + x)[:, None]).astype(np.int32)
 
 
+GRAPH_DIMENSIONS = 2
+"""Coordinates recovered from the transition graph of an MDP without features or layout (the leading ones of
+the landmark MDS, `coordinates.graph_coordinates`)."""
+
+
+def input_columns(n_features: int | None, layout: Layout | None, tabular_inputs: str) -> int | None:
+    """How many columns the networks' state inputs have: the MDP's features, else (``tabular_inputs=
+    "coordinates"``) its layout's coordinates (`layout_features`) or the graph's; None for one-hot inputs."""
+    if n_features is not None:
+        return n_features
+    if tabular_inputs != "coordinates":
+        return None
+    if layout is None:
+        return GRAPH_DIMENSIONS
+    return 2 + (layout.channels if layout.channels > 1 else 0)
+
+
 def layout_features(layout: Layout) -> np.ndarray:
     """(S, 2) normalised (x / (width − 1), y / (height − 1)) in [0, 1] per state, then an (S, channels)
     one-hot of its panel when there are several (a velocity grid's direction); float32."""

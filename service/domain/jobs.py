@@ -9,6 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from sqlalchemy import Row
 
 from service.domain.common import Resource
+from service.domain.job_config import JobConfig
 from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, JobEvent
 
@@ -55,12 +56,10 @@ class JobIn(BaseModel):
         description="Tasks to fit together (same states and features, each with demonstrations); "
         "default: every task of the demonstrator.",
     )
-    config: dict[str, Any] | None = Field(
+    config: JobConfig | None = Field(  # type: ignore[valid-type]
         default=None,
-        description="Fit settings (contract names): method, sharing, sharing_weight, sharing_states, backup, "
-        "bgi_k, confidence, hidden, learning_rate, max_steps, tolerance, seed, and holdout_fraction, patience, "
-        "ensemble, fourier_octaves, sharing_blocks, tabular_inputs. "
-        "Omitted settings take their defaults; an unknown or invalid one is a 422 naming `/config/<field>`.",
+        description="Fit settings; omitted settings take their defaults (each setting's schema gives its default, "
+        "range and meaning). An unknown or invalid one is a 422 naming `/config/<field>`.",
     )
 
 

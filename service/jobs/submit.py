@@ -11,9 +11,12 @@ from collections.abc import Sequence
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
+from metairl_engine.config import baseline_column_issues
 from metairl_engine.errors import Issue, check
+from metairl_engine.grids import input_columns
+from metairl_engine.mdp import Layout
+from service.domain.job_config import fit_config
 from service.domain.jobs import JobIn
-from service.jobs.config import parse_config
 from service.settings import Settings
 from service.sizes import check_hidden, check_mdp_size
 from service.store.blobs import blob_sha256
@@ -28,10 +31,16 @@ from service.store.models.mdps import Mdp
 def create_job(session: Session, *, lab_id: str, body: JobIn, settings: Settings) -> Job:
     """Validate the submission and add the queued job (flushed; the caller commits before sending its message);
     raises `InvalidInput` naming fields, or a 422 naming the size limit (`service.sizes`) a job would exceed."""
-    config = parse_config(body.config)
+    config = fit_config(body.config)
     check_hidden(config.hidden, settings)
     tasks, pointers = _tasks(session, lab_id, body)
-    _check_tasks(session, tasks, pointers, settings)
+    first = _check_tasks(session, tasks, pointers, settings)
+    layout = Layout(**first.layout) if first.layout else None
+    check(
+        baseline_column_issues(
+            config, n_columns=input_columns(first.n_features, layout, config.tabular_inputs)
+        )
+    )
     now = utcnow()
     job = Job(
         id=new_id("job"),
@@ -100,11 +109,10 @@ def _tasks(session: Session, lab_id: str, body: JobIn) -> tuple[list[Task], list
     return [found[t] for t in body.task_ids], [f"/task_ids/{i}" for i in range(len(body.task_ids))]
 
 
-def _check_tasks(
-    session: Session, tasks: Sequence[Task], pointers: Sequence[str], settings: Settings
-) -> None:
+def _check_tasks(session: Session, tasks: Sequence[Task], pointers: Sequence[str], settings: Settings) -> Mdp:
     """Every task has demonstrations; all share one state space (states, actions, features) with the first;
-    every MDP is within the size limits (they may have been lowered since it was uploaded)."""
+    every MDP is within the size limits (they may have been lowered since it was uploaded). Returns the first
+    task's MDP."""
     counts = dict(
         session.execute(
             select(Demonstration.task_id, func.count())
@@ -157,6 +165,7 @@ def _check_tasks(
                 )
             )
     check(issues)
+    return first
 
 
 def _features_sha(session: Session, mdp: Mdp) -> str | None:

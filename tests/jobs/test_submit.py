@@ -33,7 +33,7 @@ def pointers(response: Any) -> list[str]:
         ({"max_steps": "ten"}, "/config/max_steps"),
         ({"max_steps": 10.5}, "/config/max_steps"),
         ({"learning_rate": True}, "/config/learning_rate"),
-        ({"hidden": [8, "x"]}, "/config/hidden"),
+        ({"hidden": [8, "x"]}, "/config/hidden/1"),
         ({"sharing": "cosine"}, "/config/sharing"),
         ({"holdout_fraction": 1.0}, "/config/holdout_fraction"),
         ({"hidden": [100_000, 100_000]}, "/config/hidden/0"),  # over METAIRL_MAX_HIDDEN_UNITS' default
@@ -216,3 +216,24 @@ def test_broker_refusing_the_message_is_503_with_retry_after_and_stores_no_job(
     app.state.job_queue = CeleryJobQueue(settings)
     accepted = client.post("/v1/jobs", json=body, headers={**auth, "Idempotency-Key": "blip"})
     assert accepted.status_code == 202 and accepted.json()["status"] == "queued"
+
+
+@pytest.mark.parametrize(
+    ("config", "accepted"),
+    [
+        ({"baseline_features": [0, 1]}, True),  # the corridor's layout gives x and y
+        ({"baseline_features": [2]}, False),
+        ({"baseline_features": [0], "tabular_inputs": "one_hot"}, False),  # one-hot inputs have no columns
+    ],
+)
+def test_baseline_features_are_checked_against_the_mdp_at_submission(
+    client: TestClient, auth: dict[str, str], config: dict[str, Any], accepted: bool
+) -> None:
+    demonstrator_id, _ = demonstrated_tasks(client, auth, 1)
+    response = client.post(
+        "/v1/jobs", json={"demonstrator_id": demonstrator_id, "config": config}, headers=auth
+    )
+    if accepted:
+        assert response.status_code == 202, response.text
+    else:
+        assert pointers(response) == ["/config/baseline_features"]

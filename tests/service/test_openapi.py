@@ -52,3 +52,20 @@ def test_uploads_are_documented_as_multipart(app: FastAPI) -> None:
     for path in ("/v1/mdps", "/v1/tasks/{task_id}/demonstrations"):
         content = paths[path]["post"]["requestBody"]["content"]
         assert {"application/json", "multipart/form-data"} <= set(content)
+
+
+def test_the_job_config_schema_documents_every_fit_setting(app: FastAPI) -> None:
+    """Each `FitConfig` field is in the schema with its docstring, its default and (where it has one) its range."""
+    from dataclasses import fields
+
+    from metairl_engine.config import FitConfig
+
+    properties = app.openapi()["components"]["schemas"]["JobConfig"]["properties"]
+    defaults = FitConfig().to_dict()
+    assert set(properties) == set(defaults)
+    for f in fields(FitConfig):
+        schema = properties[f.name]
+        assert schema.get("description"), f.name
+        assert schema.get("default") == defaults[f.name], f.name  # null defaults are left out
+    assert (properties["max_steps"]["minimum"], properties["max_steps"]["maximum"]) == (1, 100_000)
+    assert properties["holdout_fraction"]["exclusiveMaximum"] == 1

@@ -1,0 +1,79 @@
+"""A job's ``config`` at the HTTP edge: a pydantic model generated field by field from the engine's `FitConfig`.
+
+Each setting's type, default, range (the field's `bounds` metadata) and description (its docstring in
+`metairl_engine/config.py`) come from `FitConfig`, so the OpenAPI schema documents every setting and cannot
+drift from the engine. Types and ranges are checked here, as 422s naming ``/config/<field>``; what needs the
+demonstrator's MDPs (``baseline_features``) is checked at submission (`service.jobs.submit`).
+"""
+
+from __future__ import annotations
+
+import ast
+import inspect
+import textwrap
+from dataclasses import fields
+from functools import cache
+from typing import Annotated, Any, get_args, get_origin, get_type_hints
+
+from pydantic import BaseModel, ConfigDict, Field, StrictInt, create_model
+
+from metairl_engine.config import FitConfig
+
+
+@cache
+def attribute_docstrings(cls: type) -> dict[str, str]:
+    """The docstring under each annotated attribute of ``cls``'s body (PEP 257's attribute docstrings)."""
+    body = ast.parse(textwrap.dedent(inspect.getsource(cls))).body[0]
+    assert isinstance(body, ast.ClassDef)
+    docs = {}
+    for node, after in zip(body.body, body.body[1:], strict=False):
+        if (
+            isinstance(node, ast.AnnAssign)
+            and isinstance(node.target, ast.Name)
+            and isinstance(after, ast.Expr)
+            and isinstance(after.value, ast.Constant)
+            and isinstance(after.value.value, str)
+        ):
+            docs[node.target.id] = inspect.cleandoc(after.value.value)
+    return docs
+
+
+def http_type(hint: Any) -> Any:
+    """The pydantic type of a `FitConfig` annotation: integers and numbers strict (``true`` is no number, ``"10"``
+    no integer, 10.5 no integer), floats finite, tuples as JSON arrays of strict integers."""
+    if hint is int:
+        return StrictInt
+    if hint is float:
+        return Annotated[float, Field(strict=True, allow_inf_nan=False)]
+    if get_origin(hint) is tuple:
+        return tuple[StrictInt, ...]
+    args = get_args(hint)
+    if type(None) in args and len(args) == 2:
+        return http_type(next(a for a in args if a is not type(None))) | None
+    return hint
+
+
+def config_model() -> type[BaseModel]:
+    """The `JobConfig` model: one optional field per `FitConfig` field, unknown settings refused."""
+    hints = get_type_hints(FitConfig)
+    docs = attribute_docstrings(FitConfig)
+    definitions: dict[str, Any] = {}
+    for f in fields(FitConfig):
+        definitions[f.name] = (
+            http_type(hints[f.name]),
+            Field(default=f.default, description=docs.get(f.name), **dict(f.metadata)),
+        )
+    return create_model(
+        "JobConfig",
+        __config__=ConfigDict(extra="forbid", json_schema_extra={"description": FitConfig.__doc__}),
+        **definitions,
+    )
+
+
+JobConfig = config_model()
+"""A job's fit settings (`FitConfig`'s contract names); omitted settings take their defaults."""
+
+
+def fit_config(config: BaseModel | None) -> FitConfig:
+    """The engine's `FitConfig` of a validated `JobConfig` (None: every default)."""
+    return FitConfig() if config is None else FitConfig.from_dict(config.model_dump())
