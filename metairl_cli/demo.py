@@ -18,7 +18,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import httpx
 import numpy as np
 from sqlalchemy.orm import Session
 from tqdm import tqdm
@@ -36,7 +35,7 @@ from metairl_cli.demo_experiment import (
 from metairl_cli.demo_report import write_report
 from metairl_cli.keys import create_key
 from metairl_cli.serve import LOCAL_LAB
-from metairl_client import Client, JobState, MetairlError
+from metairl_client import APIConnectionError, Client, JobState, MetairlError
 from metairl_engine.sim.terrain import World
 from service.settings import Settings, get_settings
 from service.store.db import make_engine, migrate
@@ -59,13 +58,13 @@ def run_demo(*, url: str, api_key: str | None, out: str, quick: bool) -> int:
         key = resolve_api_key(api_key, settings=get_settings())
         with Client.connect(url=url, api_key=key) as api:
             return run_experiment(api, settings, out=Path(out))
-    except MetairlError as exc:
-        print(f"metairl demo: the service refused a request:\n{exc}", file=sys.stderr)
-    except httpx.TransportError as exc:
+    except APIConnectionError as exc:
         print(
-            f"metairl demo: cannot reach the service at {url} ({exc}); start it with `bash scripts/serve.sh`.",
+            f"metairl demo: cannot reach the service at {url} ({exc.detail}); start it with `bash scripts/serve.sh`.",
             file=sys.stderr,
         )
+    except MetairlError as exc:
+        print(f"metairl demo: the service refused a request:\n{exc}", file=sys.stderr)
     except KeyboardInterrupt:
         print("metairl demo: interrupted; jobs in flight were cancelled.", file=sys.stderr)
         return 130
