@@ -289,9 +289,10 @@ class AsyncClient:
         """`DELETE /v1/jobs/{id}` with its events and rewards (`ConflictError` while queued or running)."""
         await self._call(ops.delete_job(job_id))
 
-    async def cancel_job(self, job_id: str) -> None:
-        """`POST /v1/jobs/{id}/cancel` (`ConflictError` when it already finished)."""
-        await self._call(ops.cancel_job(job_id))
+    async def cancel_job(self, job_id: str) -> JobState:
+        """`POST /v1/jobs/{id}/cancel`: a queued job is cancelled at once, a running one within seconds;
+        the job's state (`ConflictError` when it already finished)."""
+        return await self._call(ops.cancel_job(job_id))
 
     async def list_events(self, job_id: str, *, limit: int | None = None, cursor: str | None = None) -> Page:
         """`GET /v1/jobs/{id}/events`: one page of the job's progress log and status changes."""

@@ -299,9 +299,9 @@ def delete_job(job_id: str) -> Call[None]:
     return Call("DELETE", f"/v1/jobs/{_segment(job_id)}", _nothing)
 
 
-def cancel_job(job_id: str) -> Call[None]:
+def cancel_job(job_id: str) -> Call[JobState]:
     """`POST /v1/jobs/{id}/cancel`."""
-    return Call("POST", f"/v1/jobs/{_segment(job_id)}/cancel", _nothing)
+    return Call("POST", f"/v1/jobs/{_segment(job_id)}/cancel", _job)
 
 
 def list_events(job_id: str, limit: int | None, cursor: str | None) -> Call[Page]:
