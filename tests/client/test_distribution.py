@@ -42,7 +42,9 @@ def test_the_client_builds_as_a_wheel_with_its_types_and_only_its_libraries(tmp_
     modules = {f"metairl_client/{path.name}" for path in CLIENT.glob("*.py")}
     assert modules | {"metairl_client/py.typed"} <= names
     assert not any(name.endswith("pyproject.toml") for name in names)
-    requirements = {line.split(">")[0].split("=")[0].strip() for line in metadata.get_all("Requires-Dist", [])}
+    requirements = {
+        line.split(">")[0].split("=")[0].strip() for line in metadata.get_all("Requires-Dist", [])
+    }
     assert requirements == {"httpx", "httpx-sse", "numpy", "tqdm"}
 
 
