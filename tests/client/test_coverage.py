@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import inspect
+from pathlib import Path
 
 from fastapi import FastAPI
 
@@ -51,3 +52,10 @@ def test_the_async_client_has_the_sync_clients_signatures() -> None:
         assert inspect.iscoroutinefunction(getattr(AsyncClient, name)) == (
             not is_iterator and name not in {"connect", "with_options"}
         ), name
+
+
+def test_the_client_guide_lists_every_method() -> None:
+    guide = (Path(__file__).resolve().parents[2] / "docs" / "client.md").read_text()
+    table = guide.split("## Every method", 1)[1].split("\n## ", 1)[0]
+    mapped = {name for names in OPERATION_METHODS.values() for name in names}
+    assert {name for name in mapped if f"`{name}`" not in table} == set()
