@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 from importlib.metadata import version
+from pathlib import Path
 
 import pytest
 
@@ -44,8 +45,11 @@ def test_serve_runs_uvicorn_without_access_log_unless_asked() -> None:
     assert not build_parser().parse_args(["serve"]).access_log
 
 
-def test_serve_starts_its_worker_without_the_celery_banner(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_serve_starts_its_worker_without_the_celery_banner(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
     assert worker_command("python")[-1] == "--quiet"
+    monkeypatch.chdir(tmp_path)  # the Celery app makes its broker folders under ./var on import
     from worker import main as worker_main
     from worker.celery_app import app
 
