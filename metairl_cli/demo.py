@@ -18,8 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import httpx
 import numpy as np
+from sqlalchemy.engine import make_url
 from sqlalchemy.orm import Session
 from tqdm import tqdm
 
@@ -34,9 +34,8 @@ from metairl_cli.demo_experiment import (
     plan_jobs,
 )
 from metairl_cli.demo_report import write_report
-from metairl_cli.keys import create_key
-from metairl_cli.serve import LOCAL_LAB
-from metairl_client import Client, JobState, MetairlError
+from metairl_cli.serve import local_key
+from metairl_client import APIConnectionError, Client, JobState, MetairlError
 from metairl_engine.sim.terrain import World
 from service.settings import Settings, get_settings
 from service.store.db import make_engine, migrate
@@ -52,39 +51,67 @@ def run_demo(*, url: str, api_key: str | None, out: str, quick: bool) -> int:
     """Run the experiment against the service at ``url`` and write results into ``out``; exit code.
 
     0 when every job succeeded, 1 when the service answered an error (printed with its fields), could not
-    be reached, or some job failed (the results of the others are still written), 130 on Ctrl-C.
+    be reached, or some job failed (the results of the others are still written), 2 without a key to use,
+    130 on Ctrl-C.
     """
     settings = QUICK if quick else FULL
     try:
         key = resolve_api_key(api_key, settings=get_settings())
         with Client.connect(url=url, api_key=key) as api:
             return run_experiment(api, settings, out=Path(out))
-    except MetairlError as exc:
-        print(f"metairl demo: the service refused a request:\n{exc}", file=sys.stderr)
-    except httpx.TransportError as exc:
+    except NoLocalKey as exc:
+        print(f"metairl demo: {exc}", file=sys.stderr)
+        return 2
+    except APIConnectionError as exc:
         print(
-            f"metairl demo: cannot reach the service at {url} ({exc}); start it with `bash scripts/serve.sh`.",
+            f"metairl demo: cannot reach the service at {url} ({exc.detail}); start it with `bash scripts/serve.sh`.",
             file=sys.stderr,
         )
+    except MetairlError as exc:
+        print(f"metairl demo: the service refused a request:\n{exc}", file=sys.stderr)
     except KeyboardInterrupt:
         print("metairl demo: interrupted; jobs in flight were cancelled.", file=sys.stderr)
         return 130
     return 1
 
 
+class NoLocalKey(Exception):
+    """No key was given and there is no local database to take the ``local`` lab's key from."""
+
+
 def resolve_api_key(api_key: str | None, *, settings: Settings) -> str:
-    """The key to use: the one given, else ``$METAIRL_API_KEY``, else a new key of the local lab in the local database."""
+    """The key to use: the one given, else ``$METAIRL_API_KEY``, else the ``local`` lab's key that `metairl serve`
+    keeps in the data folder (minted and kept there only if missing or revoked, as `serve` does).
+
+    Never creates a database: `NoLocalKey` when the settings name a SQLite file that does not exist (the demo was
+    started away from the service's data folder), which would otherwise mint a key the service never sees."""
     if api_key:
         return api_key
     if os.environ.get(API_KEY_ENV):
         return os.environ[API_KEY_ENV]
+    missing = missing_sqlite_file(settings)
+    if missing is not None:
+        raise NoLocalKey(
+            f"no API key given, and no metairl database at {missing}. Run the demo with the METAIRL_DATA_DIR of "
+            f"the running service (now {settings.data_dir.resolve()}), where `metairl serve` keeps the local key, "
+            f"or pass --api-key (or set {API_KEY_ENV})."
+        )
     engine = make_engine(settings)
     try:
         migrate(engine)
         with Session(engine) as session:
-            return create_key(session, LOCAL_LAB)
+            return local_key(session, settings.data_dir)
     finally:
         engine.dispose()
+
+
+def missing_sqlite_file(settings: Settings) -> Path | None:
+    """The SQLite file the settings point at when it does not exist; None for an existing file or a server."""
+    url = make_url(settings.resolved_database_url)
+    if url.get_backend_name() != "sqlite" or not url.database or url.database == ":memory:":
+        return None
+    path = Path(url.database)
+    return None if path.exists() else path
 
 
 def run_experiment(api: Client, settings: DemoSettings, *, out: Path) -> int:

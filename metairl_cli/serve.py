@@ -51,8 +51,9 @@ def default_api_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def api_command(python: str, *, host: str, port: int, workers: int) -> list[str]:
-    """uvicorn serving the app with `workers` processes on uvloop and httptools.
+def api_command(python: str, *, host: str, port: int, workers: int, access_log: bool = False) -> list[str]:
+    """uvicorn serving the app with `workers` processes on uvloop and httptools, without its access log
+    unless ``access_log`` (a dashboard left open logs a line per poll: 1,155 in 12 minutes).
 
     uvloop sets ``TCP_NODELAY`` on every connection; without it uvicorn's multi-process mode leaves Nagle's
     algorithm on, and each reused keep-alive connection stalls ~40 ms per response on delayed ACKs.
@@ -61,13 +62,20 @@ def api_command(python: str, *, host: str, port: int, workers: int) -> list[str]
         python, "-m", "uvicorn", "--factory", "service.api.app:create_app",
         "--host", host, "--port", str(port), "--workers", str(workers),
         "--loop", "uvloop", "--http", "httptools",
+        "--access-log" if access_log else "--no-access-log",
     ]  # fmt: skip
 
 
-def serve(*, host: str, port: int, workers: int | None = None) -> int:
+def worker_command(python: str) -> list[str]:
+    """One worker running one job at a time, without Celery's start-up banner."""
+    return [python, "-m", "metairl_cli.main", "worker", "--concurrency", "1", "--quiet"]
+
+
+def serve(*, host: str, port: int, workers: int | None = None, access_log: bool = False) -> int:
     """Run API (`workers` processes, default one per core) and one worker until SIGTERM/SIGINT (exit 0) or
     until the API dies (exit 1); a worker that dies is restarted with backoff while the API stays up; exit 2
-    at once, before anything is printed or created, if the port cannot be listened on."""
+    at once, before anything is printed or created, if the port cannot be listened on. The URL and the key
+    are printed last, once the API answers and the worker said it is ready."""
     problem = port_problem(host, port)
     if problem is not None:
         print(f"metairl: {problem}", file=sys.stderr, flush=True)
@@ -89,17 +97,18 @@ def serve(*, host: str, port: int, workers: int | None = None) -> int:
     # glibc gives each of the API's 40 request threads its own malloc arena (~25 MB more per process under
     # load); two arenas keep an API process near 125 MB. The worker (torch) keeps glibc's default.
     api_env = {"MALLOC_ARENA_MAX": "2", **env}
-    worker_argv = [python, "-m", "metairl_cli.main", "worker", "--concurrency", "1"]
-    children = {
-        "api": spawn(
-            api_command(python, host=host, port=port, workers=workers or default_api_workers()), api_env
-        ),
-        "worker": spawn(worker_argv, env),
-    }
+    worker_argv = worker_command(python)
+    api_argv = api_command(
+        python, host=host, port=port, workers=workers or default_api_workers(), access_log=access_log
+    )
+    worker, worker_ready = spawn_relayed(worker_argv, env)
+    children = {"api": spawn(api_argv, api_env), "worker": worker}
     try:
         url = f"http://{host}:{port}"
         local = f"http://{'127.0.0.1' if host in ('0.0.0.0', '::', '') else host}:{port}"
         if not wait_healthy(local, children, stop):
+            return 0 if stop.is_set() else 1
+        if not wait_ready(worker_ready, children, stop):
             return 0 if stop.is_set() else 1
         print(f"metairl is running at {url} (data in {settings.data_dir.resolve()})", flush=True)
         print(f"API docs: {url}/docs", flush=True)
@@ -121,7 +130,7 @@ def serve(*, host: str, port: int, workers: int | None = None) -> int:
                 )
                 if stop.wait(delay):
                     break
-                children["worker"] = spawn(worker_argv, env)
+                children["worker"], _ = spawn_relayed(worker_argv, env)
         return 0
     finally:
         shut_down(children.values())
@@ -198,6 +207,52 @@ def child_environment(settings: Settings) -> dict[str, str]:
 def spawn(argv: list[str], env: Mapping[str, str]) -> subprocess.Popen[bytes]:
     """Start a child in its own session, so a terminal's Ctrl-C reaches only us and we stop it in order."""
     return subprocess.Popen(argv, env=dict(env), start_new_session=True)
+
+
+def spawn_relayed(argv: list[str], env: Mapping[str, str]) -> tuple[subprocess.Popen[bytes], threading.Event]:
+    """Start a child like `spawn`, its output relayed line by line to our stderr by a thread, and an event set
+    once a line says the Celery worker is ready (``celery@host ready.``)."""
+    child = subprocess.Popen(
+        argv, env=dict(env), start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT
+    )
+    ready = threading.Event()
+
+    def relay() -> None:
+        assert child.stdout is not None
+        for raw in child.stdout:
+            line = raw.decode(errors="replace")
+            sys.stderr.write(line)
+            sys.stderr.flush()
+            if line.rstrip().endswith(" ready."):
+                ready.set()
+
+    threading.Thread(target=relay, name="worker-output", daemon=True).start()
+    return child, ready
+
+
+def wait_ready(
+    ready: threading.Event, children: Mapping[str, subprocess.Popen[bytes]], stop: threading.Event
+) -> bool:
+    """Wait until the worker says it is ready; False if a child died or we were told to stop. After
+    STARTUP_TIMEOUT_S it goes on (True) with a note: the API works, jobs wait in the queue."""
+    deadline = time.monotonic() + STARTUP_TIMEOUT_S
+    while not ready.wait(0.2):
+        if stop.is_set():
+            return False
+        if any(child.poll() is not None for child in children.values()):
+            print(
+                "metairl: a process exited during start-up; see its output above", file=sys.stderr, flush=True
+            )
+            return False
+        if time.monotonic() > deadline:
+            print(
+                f"metairl: the worker has not said it is ready after {STARTUP_TIMEOUT_S:.0f} s; "
+                "jobs wait in the queue until it is",
+                file=sys.stderr,
+                flush=True,
+            )
+            return True
+    return True
 
 
 def wait_healthy(url: str, children: Mapping[str, subprocess.Popen[bytes]], stop: threading.Event) -> bool:

@@ -8,26 +8,63 @@
         job = lab.wait(lab.submit_job(demonstrator_id).id)   # a progress bar on stderr
         baseline, per_task = lab.rewards(job.id)              # numpy arrays
 
-It needs only httpx and numpy, and imports nothing else of metairl. Every error answer of the service
-raises `MetairlError`, which carries the problem+json (status, title, detail, errors).
+`AsyncClient` is the same for asyncio. It needs httpx, httpx-sse, numpy and tqdm, and imports nothing else of
+metairl. Requests are retried on connection errors, 429 and 503; every error raises a `MetairlError`
+subclass carrying the problem+json (docs/client.md).
 """
 
-from metairl_client._client import (
+from metairl_client._async_client import AsyncClient
+from metairl_client._client import Client
+from metairl_client._errors import (
+    APIConnectionError,
+    APIStatusError,
+    APITimeoutError,
+    AuthenticationError,
+    BadRequestError,
+    ConflictError,
+    InternalServerError,
+    MetairlError,
+    NotFoundError,
+    PermissionDeniedError,
+    RateLimitError,
+    RequestTooLargeError,
+    ServiceUnavailableError,
+    UnprocessableEntityError,
+)
+from metairl_client._models import (
     TERMINAL_STATUSES,
-    Client,
     JobRewardIds,
     JobState,
-    MetairlError,
+    Page,
     TrajectoryLike,
     progress_bar,
 )
+from metairl_client._transport import Retries
+from metairl_client._version import __version__
 
 __all__ = [
     "TERMINAL_STATUSES",
+    "APIConnectionError",
+    "APIStatusError",
+    "APITimeoutError",
+    "AsyncClient",
+    "AuthenticationError",
+    "BadRequestError",
     "Client",
+    "ConflictError",
+    "InternalServerError",
     "JobRewardIds",
     "JobState",
     "MetairlError",
+    "NotFoundError",
+    "Page",
+    "PermissionDeniedError",
+    "RateLimitError",
+    "RequestTooLargeError",
+    "Retries",
+    "ServiceUnavailableError",
     "TrajectoryLike",
+    "UnprocessableEntityError",
+    "__version__",
     "progress_bar",
 ]

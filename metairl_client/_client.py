@@ -1,156 +1,83 @@
-"""The metairl lab client: numpy in, numpy out, over the HTTP API (docs/api.md).
+"""`Client`, the synchronous lab client: one typed method per API operation (docs/client.md).
 
-Every request goes through `Client._request`, the one place that turns an error answer (RFC 9457
-``application/problem+json``, or any other non-2xx response) into a `MetairlError`.
-"""
+Each method builds its `Call` in `_operations` and sends it through `_transport.send`, the one place that
+retries and turns an error answer into the `MetairlError` subclass of its status."""
 
 from __future__ import annotations
 
 import contextlib
-import io
-import json
-import sys
+import copy
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field, replace
-from datetime import datetime
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Any, Protocol
+from typing import IO, Any, TypeVar
 
 import httpx
 import numpy as np
 
-TERMINAL_STATUSES = frozenset({"succeeded", "failed", "cancelled"})
-"""Job statuses after which a job never changes again."""
+from metairl_client import _operations as ops
+from metairl_client._errors import error_from_response
+from metairl_client._models import JobRewardIds, JobState, Page, Trajectory
+from metairl_client._operations import JobStatusName, Quantity, RewardFormat, WebhookEvent
+from metairl_client._sse import events, is_event_stream
+from metairl_client._transport import Call, Retries, Timeout, send
+from metairl_client._version import __version__
+from metairl_client._waiting import STREAM_FAILURES, NoStream, Waiter
+
+T = TypeVar("T")
+
+DEFAULT_TIMEOUT_S = 60.0
 
 
-class MetairlError(Exception):
-    """Any error answer of the service, carrying its problem+json: ``status``, ``title``, ``detail``,
-    ``errors`` (``[{"pointer" or "parameter", "message"}]``) and the whole body as ``problem``."""
-
-    def __init__(
-        self,
-        *,
-        status: int,
-        title: str,
-        detail: str,
-        errors: Sequence[Mapping[str, Any]] = (),
-        request: str = "",
-        problem: Mapping[str, Any] | None = None,
-    ):
-        self.status, self.title, self.detail = status, title, detail
-        self.errors = [dict(e) for e in errors]
-        self.request = request
-        self.problem: dict[str, Any] = dict(problem or {"status": status, "title": title, "detail": detail})
-        super().__init__(self.describe())
-
-    @classmethod
-    def from_response(cls, response: httpx.Response) -> MetairlError:
-        """Read a problem+json body (or, failing that, the raw text) of a non-2xx response."""
-        request = f"{response.request.method} {response.request.url.path}"
-        try:
-            body = response.json()
-        except ValueError:
-            body = None
-        if not isinstance(body, dict):
-            return cls(
-                status=response.status_code,
-                title=response.reason_phrase or "Error",
-                detail=response.text.strip()[:500],
-                request=request,
-            )
-        return cls(
-            status=int(body.get("status", response.status_code)),
-            title=str(body.get("title", response.reason_phrase)),
-            detail=str(body.get("detail", "")),
-            errors=[e for e in body.get("errors") or [] if isinstance(e, dict)],
-            request=request,
-            problem=body,
-        )
-
-    def describe(self) -> str:
-        """``HTTP 422 Invalid input (POST /v1/mdps): detail`` and one indented line per field error."""
-        where = f" ({self.request})" if self.request else ""
-        head = f"HTTP {self.status} {self.title}{where}"
-        lines = [f"{head}: {self.detail}" if self.detail else head]
-        lines += [
-            f"  - {e.get('pointer') or e.get('parameter') or '/'}: {e.get('message', '')}"
-            for e in self.errors
-        ]
-        return "\n".join(lines)
-
-
-class TrajectoryLike(Protocol):
-    """A trajectory: integer arrays of visited states and the actions taken (one fewer, or as many)."""
-
-    @property
-    def states(self) -> np.ndarray: ...
-
-    @property
-    def actions(self) -> np.ndarray: ...
-
-
-@dataclass(frozen=True)
-class JobState:
-    """A job's status, its progress step (None before the first) and its error when it failed."""
-
-    id: str
-    status: str
-    step: int | None
-    max_steps: int | None
-    error: str | None
-    started_at: datetime | None = None
-    finished_at: datetime | None = None
-    attempt: int = 0
-    """The attempt the status and step belong to (0 before the first)."""
-    updated_at: datetime | None = None
-    """When the status last changed."""
-
-    @property
-    def finished(self) -> bool:
-        """True once the job succeeded, failed or was cancelled."""
-        return self.status in TERMINAL_STATUSES
-
-    def already_shows(self, kind: str | None, event: dict[str, Any]) -> bool:
-        """Whether this snapshot already reflects a job event (``kind`` and its JSON data): an earlier
-        attempt's, a status change before `updated_at`, or a progress step of this attempt at or before
-        `step`. A stream opened on a running job replays such history first."""
-        attempt = int(event.get("attempt", 0))
-        if attempt != self.attempt:
-            return attempt < self.attempt
-        if kind == "status":
-            at = _when(event.get("at"))
-            return at is not None and self.updated_at is not None and at <= self.updated_at
-        step = event.get("step")
-        return kind == "progress" and step is not None and self.step is not None and step <= self.step
-
-
-@dataclass(frozen=True)
-class JobRewardIds:
-    """`GET /v1/jobs/{id}/rewards`: the baseline's reward id and each task's, keyed by task id."""
-
-    baseline: str
-    tasks: dict[str, str]
-    task_names: dict[str, str] = field(default_factory=dict)
-    """Each task's name, keyed by task id."""
+def client_headers(api_key: str | None) -> dict[str, str]:
+    """The headers every request of a client made from a URL carries."""
+    auth = {"Authorization": f"Bearer {api_key}"} if api_key else {}
+    return {"User-Agent": f"metairl-client/{__version__}"} | auth
 
 
 class Client:
     """A lab's connection to a metairl service: ``Client(url, api_key)``, or ``Client(http)`` around an
     `httpx.Client` that already carries base URL and key. Use it as a context manager to close it."""
 
-    def __init__(self, url: str | httpx.Client, api_key: str | None = None, *, timeout_s: float = 60.0):
+    def __init__(
+        self,
+        url: str | httpx.Client,
+        api_key: str | None = None,
+        *,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
+        max_retries: int = Retries.max_retries,
+    ):
         if isinstance(url, str):
-            headers = {"Authorization": f"Bearer {api_key}"} if api_key else {}
-            self.http = httpx.Client(base_url=url.rstrip("/"), headers=headers, timeout=timeout_s)
+            self.http = httpx.Client(
+                base_url=url.rstrip("/"), headers=client_headers(api_key), timeout=timeout_s
+            )
         else:
             self.http = url
+        self.retries = Retries(max_retries=max_retries)
+        self.timeout: Timeout = httpx.USE_CLIENT_DEFAULT
 
     @classmethod
-    def connect(cls, *, url: str, api_key: str, timeout_s: float = 60.0) -> Client:
+    def connect(
+        cls,
+        *,
+        url: str,
+        api_key: str,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
+        max_retries: int = Retries.max_retries,
+    ) -> Client:
         """A client of the service at ``url`` authenticating with ``api_key`` (Bearer)."""
-        return cls(url, api_key, timeout_s=timeout_s)
+        return cls(url, api_key, timeout_s=timeout_s, max_retries=max_retries)
+
+    def with_options(self, *, max_retries: int | None = None, timeout_s: float | None = None) -> Client:
+        """A client on the same connections with other retries or timeout (per request), e.g.
+        ``lab.with_options(max_retries=5).get_job(job_id)``."""
+        other = copy.copy(self)
+        if max_retries is not None:
+            other.retries = Retries(max_retries=max_retries)
+        if timeout_s is not None:
+            other.timeout = timeout_s
+        return other
 
     def __enter__(self) -> Client:
         return self
@@ -164,36 +91,35 @@ class Client:
         """Close the underlying HTTP connections."""
         self.http.close()
 
-    def _request(
-        self,
-        method: str,
-        path: str,
-        *,
-        json: Any = None,
-        params: Mapping[str, str] | None = None,
-        files: Mapping[str, tuple[str, bytes, str]] | None = None,
-        data: Mapping[str, str] | None = None,
-    ) -> httpx.Response:
-        """Send one request; raises `MetairlError` for any non-2xx answer."""
-        response = self.http.request(method, path, json=json, params=params, files=files, data=data)
-        if response.is_error:
-            raise MetairlError.from_response(response)
-        return response
+    def _call(self, call: Call[T]) -> T:
+        """Send one call (with retries) and read its answer."""
+        return send(self.http, call, self.retries, self.timeout)
 
-    def _json(self, method: str, path: str, **kwargs: Any) -> Any:
-        """Send one request and return its JSON body (None when empty)."""
-        response = self._request(method, path, **kwargs)
-        return response.json() if response.content else None
+    def _pages(self, page: Callable[[str | None], Call[Page]]) -> Iterator[dict[str, Any]]:
+        """Every item of a list, fetching page after page as the iteration reaches it."""
+        cursor: str | None = None
+        while True:
+            current = self._call(page(cursor))
+            yield from current.data
+            if not (current.has_more and current.next_cursor):
+                return
+            cursor = current.next_cursor
 
-    # -------------------------------------------------------------- inputs
+    # -------------------------------------------------------------- service
 
     def check_health(self) -> None:
         """`GET /healthz`: fails early, with a clear error, when nothing answers at the URL."""
-        self._json("GET", "/healthz")
+        self._call(ops.health())
 
-    def create_mdp(self, body: dict[str, Any]) -> str:
+    def check_ready(self) -> dict[str, Any]:
+        """`GET /readyz`: whether the service can serve (database reachable); `ServiceUnavailableError` if not."""
+        return self._call(ops.readiness())
+
+    # -------------------------------------------------------------- MDPs
+
+    def create_mdp(self, body: Mapping[str, Any]) -> str:
         """`POST /v1/mdps` with an explicit or grid MDP body; returns the MDP id."""
-        return str(self._json("POST", "/v1/mdps", json=body)["id"])
+        return self._call(ops.create_mdp(body))
 
     def upload_mdp(
         self,
@@ -207,49 +133,101 @@ class Client:
     ) -> str:
         """`POST /v1/mdps` with the arrays as an ``.npz`` upload (``features``, and ``next_state`` or
         ``s``, ``a``, ``next``, ``p``); ``layout`` is (width, height, channels). Returns the MDP id."""
-        form = {"name": name, "gamma": repr(float(gamma))}
-        if layout is not None:
-            form |= {"width": str(layout[0]), "height": str(layout[1]), "channels": str(layout[2])}
-        if n_states is not None:
-            form["n_states"] = str(n_states)
-        if n_actions is not None:
-            form["n_actions"] = str(n_actions)
-        files = {"file": ("mdp.npz", _npz(arrays), "application/octet-stream")}
-        return str(self._json("POST", "/v1/mdps", files=files, data=form)["id"])
+        call = ops.upload_mdp(
+            name=name, gamma=gamma, arrays=arrays, layout=layout, n_states=n_states, n_actions=n_actions
+        )
+        return self._call(call)
+
+    def list_mdps(self, *, limit: int | None = None, cursor: str | None = None) -> Page:
+        """`GET /v1/mdps`: one page of the lab's MDPs."""
+        return self._call(ops.list_mdps(limit, cursor))
+
+    def iter_mdps(self, *, page_size: int = 100) -> Iterator[dict[str, Any]]:
+        """Every MDP of the lab, page after page."""
+        return self._pages(lambda cursor: ops.list_mdps(page_size, cursor))
 
     def get_mdp(self, mdp_id: str) -> dict[str, Any]:
         """`GET /v1/mdps/{id}`: the MDP resource (``n_states``, ``n_actions``, ``gamma``, checksums, …)."""
-        return dict(self._json("GET", f"/v1/mdps/{mdp_id}"))
+        return self._call(ops.get_mdp(mdp_id))
+
+    def delete_mdp(self, mdp_id: str) -> None:
+        """`DELETE /v1/mdps/{id}` (`ConflictError` while a task uses it)."""
+        self._call(ops.delete_mdp(mdp_id))
 
     def mdp_arrays(self, mdp_id: str) -> dict[str, np.ndarray]:
         """`GET /v1/mdps/{id}/arrays`: the MDP's arrays under the names `upload_mdp` takes."""
-        content = self._request("GET", f"/v1/mdps/{mdp_id}/arrays").content
-        with np.load(io.BytesIO(content), allow_pickle=False) as archive:
-            return {name: archive[name] for name in archive.files}
+        return self._call(ops.mdp_arrays(mdp_id))
 
-    def create_demonstrator(self, *, name: str, metadata: dict[str, Any] | None = None) -> str:
+    # -------------------------------------------------------------- demonstrators, tasks, demonstrations
+
+    def create_demonstrator(self, *, name: str, metadata: Mapping[str, Any] | None = None) -> str:
         """`POST /v1/demonstrators`; returns the demonstrator id."""
-        return str(self._json("POST", "/v1/demonstrators", json={"name": name, "metadata": metadata})["id"])
+        return self._call(ops.create_demonstrator(name, metadata))
+
+    def list_demonstrators(self, *, limit: int | None = None, cursor: str | None = None) -> Page:
+        """`GET /v1/demonstrators`: one page of the lab's demonstrators."""
+        return self._call(ops.list_demonstrators(limit, cursor))
+
+    def iter_demonstrators(self, *, page_size: int = 100) -> Iterator[dict[str, Any]]:
+        """Every demonstrator of the lab, page after page."""
+        return self._pages(lambda cursor: ops.list_demonstrators(page_size, cursor))
+
+    def get_demonstrator(self, demonstrator_id: str) -> dict[str, Any]:
+        """`GET /v1/demonstrators/{id}`."""
+        return self._call(ops.get_demonstrator(demonstrator_id))
+
+    def delete_demonstrator(self, demonstrator_id: str) -> None:
+        """`DELETE /v1/demonstrators/{id}` with its tasks, recordings, jobs and rewards."""
+        self._call(ops.delete_demonstrator(demonstrator_id))
 
     def create_task(
-        self, demonstrator_id: str, *, name: str, mdp_id: str, metadata: dict[str, Any] | None = None
+        self, demonstrator_id: str, *, name: str, mdp_id: str, metadata: Mapping[str, Any] | None = None
     ) -> str:
         """`POST /v1/demonstrators/{id}/tasks`; returns the task id."""
-        body = {"name": name, "mdp_id": mdp_id, "metadata": metadata}
-        return str(self._json("POST", f"/v1/demonstrators/{demonstrator_id}/tasks", json=body)["id"])
+        return self._call(ops.create_task(demonstrator_id, name, mdp_id, metadata))
 
-    def add_demonstrations(
-        self, task_id: str, trajectories: Iterable[TrajectoryLike | tuple[Sequence[int], Sequence[int]]]
-    ) -> str:
+    def list_tasks(
+        self, demonstrator_id: str, *, limit: int | None = None, cursor: str | None = None
+    ) -> Page:
+        """`GET /v1/demonstrators/{id}/tasks`: one page of the demonstrator's tasks."""
+        return self._call(ops.list_tasks(demonstrator_id, limit, cursor))
+
+    def iter_tasks(self, demonstrator_id: str, *, page_size: int = 100) -> Iterator[dict[str, Any]]:
+        """Every task of the demonstrator, page after page."""
+        return self._pages(lambda cursor: ops.list_tasks(demonstrator_id, page_size, cursor))
+
+    def get_task(self, task_id: str) -> dict[str, Any]:
+        """`GET /v1/tasks/{id}`."""
+        return self._call(ops.get_task(task_id))
+
+    def delete_task(self, task_id: str) -> None:
+        """`DELETE /v1/tasks/{id}` with its demonstrations."""
+        self._call(ops.delete_task(task_id))
+
+    def put_true_reward(self, task_id: str, values: np.ndarray | Sequence[float]) -> None:
+        """`PUT /v1/tasks/{id}/true-reward`: the simulation's ground truth, one value per state."""
+        self._call(ops.put_true_reward(task_id, values))
+
+    def get_true_reward(self, task_id: str) -> dict[str, Any]:
+        """`GET /v1/tasks/{id}/true-reward`: the stored ground truth (``values``, ``sha256``, …)."""
+        return self._call(ops.get_true_reward(task_id))
+
+    def add_demonstrations(self, task_id: str, trajectories: Iterable[Trajectory]) -> str:
         """`POST /v1/tasks/{id}/demonstrations` with every trajectory, given as objects with ``states`` and
         ``actions`` or as (states, actions) pairs of integer arrays. Returns the upload batch's id."""
-        body = {
-            "trajectories": [
-                {"states": np.asarray(s).tolist(), "actions": np.asarray(a).tolist()}
-                for s, a in (_states_actions(t) for t in trajectories)
-            ]
-        }
-        return str(self._json("POST", f"/v1/tasks/{task_id}/demonstrations", json=body)["id"])
+        return self._call(ops.add_demonstrations(task_id, trajectories))
+
+    def list_demonstrations(
+        self, task_id: str, *, limit: int | None = None, cursor: str | None = None
+    ) -> Page:
+        """`GET /v1/tasks/{id}/demonstrations`: one page of the task's demonstrations."""
+        return self._call(ops.list_demonstrations(task_id, limit, cursor))
+
+    def iter_demonstrations(self, task_id: str, *, page_size: int = 100) -> Iterator[dict[str, Any]]:
+        """Every demonstration of the task, page after page."""
+        return self._pages(lambda cursor: ops.list_demonstrations(task_id, page_size, cursor))
+
+    # -------------------------------------------------------------- recordings
 
     def upload_recording(
         self,
@@ -263,22 +241,25 @@ class Client:
     ) -> dict[str, Any]:
         """`POST /v1/demonstrators/{id}/recordings` with a recording file on a plate of ``bounds`` (``x_min``,
         ``x_max``, ``y_min``, ``y_max``), mapped onto the velocity grid ``mdp_id``: a CSV of centre-of-pressure
-        samples (columns ``t,x,y`` and optionally ``instruction``), a C3D file, or a CSV of plate forces and
-        moments (``Fx,Fy,Fz,Mx,My,Mz``); the service tells them apart. ``plate`` says how to read a force-plate
-        file (``axes``, ``min_fz``, ``platform``, ``rate_hz``, ``moment_unit``, ``origin_depth``; docs/motion.md,
-        "Force-plate files"). Returns the recording (its ``tasks``, each with ``task_id`` and ``label``,
-        ``n_samples``, ``segments``)."""
-        content = file.read_bytes() if isinstance(file, Path) else file
-        filename = file.name if isinstance(file, Path) else "recording"
-        form = {"mdp_id": mdp_id, "bounds": json.dumps(dict(bounds))}
-        form |= ({"name": name} if name else {}) | ({"plate": json.dumps(dict(plate))} if plate else {})
-        files = {"file": (filename, content, "application/octet-stream")}
-        path = f"/v1/demonstrators/{demonstrator_id}/recordings"
-        return dict(self._json("POST", path, files=files, data=form))
+        samples (``t,x,y`` and optionally ``instruction``), a C3D file, or a CSV of plate forces and moments;
+        ``plate`` says how to read a force-plate file (docs/motion.md). Returns the recording."""
+        return self._call(
+            ops.upload_recording(demonstrator_id, file, mdp_id=mdp_id, bounds=bounds, name=name, plate=plate)
+        )
 
-    def put_true_reward(self, task_id: str, values: np.ndarray | Sequence[float]) -> None:
-        """`PUT /v1/tasks/{id}/true-reward`: the simulation's ground truth, one value per state."""
-        self._json("PUT", f"/v1/tasks/{task_id}/true-reward", json={"values": np.asarray(values).tolist()})
+    def list_recordings(
+        self, demonstrator_id: str, *, limit: int | None = None, cursor: str | None = None
+    ) -> Page:
+        """`GET /v1/demonstrators/{id}/recordings`: one page of the demonstrator's recordings."""
+        return self._call(ops.list_recordings(demonstrator_id, limit, cursor))
+
+    def iter_recordings(self, demonstrator_id: str, *, page_size: int = 100) -> Iterator[dict[str, Any]]:
+        """Every recording of the demonstrator, page after page."""
+        return self._pages(lambda cursor: ops.list_recordings(demonstrator_id, page_size, cursor))
+
+    def recording_demonstrations(self, recording_id: str, *, label: str | None = None) -> dict[str, Any]:
+        """`GET /v1/recordings/{id}/demonstrations`: the trajectories cut from a recording (one label's)."""
+        return self._call(ops.recording_demonstrations(recording_id, label))
 
     # -------------------------------------------------------------- jobs
 
@@ -287,21 +268,48 @@ class Client:
         demonstrator_id: str,
         *,
         task_ids: Sequence[str] | None = None,
-        config: dict[str, Any] | None = None,
+        config: Mapping[str, Any] | None = None,
     ) -> JobState:
         """`POST /v1/jobs` (202): fit the demonstrator's tasks (all unless ``task_ids``); the new job's state."""
-        body: dict[str, Any] = {"demonstrator_id": demonstrator_id, "config": config}
-        if task_ids is not None:
-            body["task_ids"] = list(task_ids)
-        return _job_state(self._json("POST", "/v1/jobs", json=body))
+        return self._call(ops.submit_job(demonstrator_id, task_ids, config))
+
+    def list_jobs(
+        self,
+        *,
+        status: JobStatusName | None = None,
+        demonstrator_id: str | None = None,
+        limit: int | None = None,
+        cursor: str | None = None,
+    ) -> Page:
+        """`GET /v1/jobs`: one page of the lab's jobs, filtered by status and demonstrator."""
+        return self._call(ops.list_jobs(status, demonstrator_id, limit, cursor))
+
+    def iter_jobs(
+        self, *, status: JobStatusName | None = None, demonstrator_id: str | None = None, page_size: int = 100
+    ) -> Iterator[dict[str, Any]]:
+        """Every job of the lab (filtered by status and demonstrator), page after page."""
+        return self._pages(lambda cursor: ops.list_jobs(status, demonstrator_id, page_size, cursor))
 
     def get_job(self, job_id: str) -> JobState:
         """`GET /v1/jobs/{id}`: status and progress."""
-        return _job_state(self._json("GET", f"/v1/jobs/{job_id}"))
+        return self._call(ops.get_job(job_id))
 
-    def cancel_job(self, job_id: str) -> None:
-        """`POST /v1/jobs/{id}/cancel` (409 when it already finished)."""
-        self._json("POST", f"/v1/jobs/{job_id}/cancel")
+    def delete_job(self, job_id: str) -> None:
+        """`DELETE /v1/jobs/{id}` with its events and rewards (`ConflictError` while queued or running)."""
+        self._call(ops.delete_job(job_id))
+
+    def cancel_job(self, job_id: str) -> JobState:
+        """`POST /v1/jobs/{id}/cancel`: a queued job is cancelled at once, a running one within seconds;
+        the job's state (`ConflictError` when it already finished)."""
+        return self._call(ops.cancel_job(job_id))
+
+    def list_events(self, job_id: str, *, limit: int | None = None, cursor: str | None = None) -> Page:
+        """`GET /v1/jobs/{id}/events`: one page of the job's progress log and status changes."""
+        return self._call(ops.list_events(job_id, limit, cursor))
+
+    def iter_events(self, job_id: str, *, page_size: int = 100) -> Iterator[dict[str, Any]]:
+        """Every stored event of the job, page after page (`wait` follows them live)."""
+        return self._pages(lambda cursor: ops.list_events(job_id, page_size, cursor))
 
     def wait(
         self,
@@ -312,112 +320,82 @@ class Client:
         progress: bool = True,
         stream: IO[str] | None = None,
     ) -> JobState:
-        """Follow the job until it succeeds, fails or is cancelled, drawing a progress bar on ``stream``
-        (stderr by default; none if ``progress`` is false). Returns the final state; `TimeoutError` after
-        ``timeout_s``. A failed job is returned, not raised: its ``error`` says what to change.
+        """Follow the job until it succeeds, fails or is cancelled, with a tqdm bar on ``stream`` (stderr by
+        default; none if ``progress`` is false). Returns the final state; `TimeoutError` after ``timeout_s``.
+        A failed job is returned, not raised: its ``error`` says what to change.
 
         The job's events arrive as Server-Sent Events (one connection, resumed with ``Last-Event-ID`` if
         it drops); a server without the stream is polled every ``poll_s`` instead."""
-        out = stream if stream is not None else sys.stderr
-        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        with Waiter(job_id, timeout_s=timeout_s, progress=progress, stream=stream) as waiter:
+            waiter.show(self.get_job(job_id))
+            if not waiter.finished:
+                with contextlib.suppress(NoStream):
+                    self._follow(waiter)
+            while not waiter.finished:
+                waiter.check_deadline()
+                time.sleep(poll_s)
+                waiter.show(self.get_job(job_id))
+            return waiter.current
 
-        def draw(state: JobState) -> None:
-            if progress:
-                out.write("\r" + progress_bar(state))
-                out.flush()
-
-        def check_deadline(state: JobState) -> None:
-            if deadline is not None and time.monotonic() > deadline:
-                raise TimeoutError(f"job {job_id} is still {state.status} after {timeout_s} s")
-
-        state = self.get_job(job_id)
-        draw(state)
-        if not state.finished:
-            with contextlib.suppress(_NoStream):  # an older server: poll
-                state = self._follow(job_id, state, draw=draw, check_deadline=check_deadline)
-        while not state.finished:
-            check_deadline(state)
-            time.sleep(poll_s)
-            state = self.get_job(job_id)
-            draw(state)
-        if progress:
-            out.write("\n")
-        return state
-
-    def _follow(
-        self,
-        job_id: str,
-        state: JobState,
-        *,
-        draw: Callable[[JobState], None],
-        check_deadline: Callable[[JobState], None],
-    ) -> JobState:
-        """Read the job's event stream until its final status (reconnecting after the last event seen);
-        `_NoStream` when the server does not stream or the connection keeps failing."""
-        last_id: str | None = None
+    def _follow(self, waiter: Waiter) -> None:
+        """Read the job's event stream until its final status, reconnecting after the last event seen;
+        `NoStream` when the server does not stream or the connection keeps failing."""
+        path = ops.events_path(waiter.job_id)
         failures = 0
         while True:
-            headers = {"Accept": "text/event-stream"} | ({"Last-Event-ID": last_id} if last_id else {})
             try:
-                with self.http.stream("GET", f"/v1/jobs/{job_id}/events", headers=headers) as response:
+                with self.http.stream("GET", path, headers=waiter.stream_headers()) as response:
                     if response.is_error:
                         response.read()
-                        raise MetairlError.from_response(response)
-                    if not response.headers.get("content-type", "").startswith("text/event-stream"):
-                        raise _NoStream
-                    for event_id, kind, data in _sse_messages(response.iter_lines()):
-                        check_deadline(state)
-                        last_id = event_id or last_id
+                        raise error_from_response(response)
+                    if not is_event_stream(response):
+                        raise NoStream
+                    for event_id, kind, data in events(response):
                         failures = 0
-                        if state.already_shows(kind, data):
-                            continue  # history the stream replays: drawing it would move the bar back
-                        attempt = int(data.get("attempt", state.attempt))
-                        if kind == "progress":
-                            state = replace(
-                                state, step=data.get("step"), max_steps=data.get("max_steps"), attempt=attempt
-                            )
-                        elif kind == "status":
-                            state = replace(
-                                state,
-                                status=str(data.get("status")),
-                                attempt=attempt,
-                                updated_at=_when(data.get("at")),
-                            )
-                        if kind is not None:
-                            draw(state)
-                        if state.finished:
-                            return self.get_job(job_id)  # the final row: error, last progress
+                        if waiter.on_event(event_id, kind, data):
+                            waiter.show(self.get_job(waiter.job_id))  # the final row: error, last progress
+                            return
             except httpx.TransportError as exc:
                 failures += 1
-                if failures > 3:
-                    raise _NoStream from exc
+                if failures > STREAM_FAILURES:
+                    raise NoStream from exc
                 time.sleep(0.5 * failures)
-            check_deadline(state)
-            state = self.get_job(job_id)  # the stream ended (its time limit, or a drop): resume after last_id
-            if state.finished:
-                return state
+            waiter.check_deadline()
+            waiter.show(self.get_job(waiter.job_id))  # the stream ended (its time limit, or a drop)
+            if waiter.finished:
+                return
 
     # -------------------------------------------------------------- results
 
-    def job_rewards(self, job_id: str) -> JobRewardIds:
-        """`GET /v1/jobs/{id}/rewards`: reward ids of the baseline and of every task."""
-        body = self._json("GET", f"/v1/jobs/{job_id}/rewards")
-        return JobRewardIds(
-            baseline=str(body["baseline"]["reward_id"]),
-            tasks={str(t["task_id"]): str(t["reward_id"]) for t in body["tasks"]},
-            task_names={str(t["task_id"]): str(t["task_name"]) for t in body["tasks"] if t.get("task_name")},
-        )
+    def job_rewards(self, job_id: str, *, exclude_top_truth: bool = False) -> JobRewardIds:
+        """`GET /v1/jobs/{id}/rewards`: reward ids of the baseline and of every task (`ConflictError` before
+        the job succeeded); ``exclude_top_truth`` adds truth scores without the goal states."""
+        return self._call(ops.job_rewards(job_id, exclude_top_truth))
 
-    def reward_values(self, reward_id: str, *, quantity: str = "reward") -> np.ndarray:
+    def reward_values(self, reward_id: str, *, quantity: Quantity = "reward") -> np.ndarray:
         """`GET /v1/rewards/{id}?format=npy`: a reward (or a task's ``value`` or ``policy``) as float64."""
-        content = self._request(
-            "GET", f"/v1/rewards/{reward_id}", params={"format": "npy", "quantity": quantity}
-        ).content
-        return np.load(io.BytesIO(content), allow_pickle=False).astype(np.float64)
+        return self._call(ops.reward_values(reward_id, quantity))
+
+    def download_reward(
+        self,
+        reward_id: str,
+        *,
+        format: RewardFormat = "json",
+        quantity: Quantity = "reward",
+        overlay: bool = False,
+    ) -> bytes:
+        """`GET /v1/rewards/{id}?format=…`: a reward, value function or policy in any format, as bytes
+        (``overlay`` draws the demonstrations on a PNG)."""
+        return self._call(ops.download_reward(reward_id, format, quantity, overlay))
 
     def reward_png(self, reward_id: str) -> bytes:
         """`GET /v1/rewards/{id}?format=png`: the reward as a heatmap (an MDP with a grid layout)."""
-        return self._request("GET", f"/v1/rewards/{reward_id}", params={"format": "png"}).content
+        return self.download_reward(reward_id, format="png")
+
+    def rewards(self, job_id: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """A succeeded job's learned rewards: the baseline, and each task's keyed by task id."""
+        ids = self.job_rewards(job_id)
+        return self.reward_values(ids.baseline), {t: self.reward_values(r) for t, r in ids.tasks.items()}
 
     def compare(
         self,
@@ -429,92 +407,55 @@ class Client:
     ) -> dict[str, Any]:
         """`POST /v1/comparisons`: learned reward ``reward_id`` against ``other`` — another reward id, a
         task id (``other_is_task``: its true reward) or one value per state — on ``all`` states or the
-        ``visited`` ones. Returns the comparison (``pearson``, ``spearman``, ``epic_distance``,
-        ``n_compared``, ``dynamics``, …)."""
-        if isinstance(other, str):
-            b: dict[str, Any] = {"task_id": other} if other_is_task else {"reward_id": other}
-        else:
-            b = {"values": np.asarray(other, dtype=np.float64).tolist()}
-        body = {"a": {"reward_id": reward_id}, "b": b, "states": states}
-        return dict(self._json("POST", "/v1/comparisons", json=body))
+        ``visited`` ones. Returns the comparison (``pearson``, ``spearman``, ``epic_distance``, …)."""
+        return self._call(ops.compare(reward_id, other, states, other_is_task))
+
+    def comparison_matrix(self, job_id: str) -> dict[str, Any]:
+        """`GET /v1/jobs/{id}/comparison-matrix`: pairwise Pearson of the job's rewards."""
+        return self._call(ops.comparison_matrix(job_id))
 
     def comparison_matrix_png(self, job_id: str) -> bytes:
-        """`GET /v1/jobs/{id}/comparison-matrix?format=png`: pairwise Pearson of the job's rewards as a PNG."""
-        return self._request("GET", f"/v1/jobs/{job_id}/comparison-matrix", params={"format": "png"}).content
+        """`GET /v1/jobs/{id}/comparison-matrix?format=png`: the matrix drawn as a PNG."""
+        return self._call(ops.comparison_matrix_png(job_id))
 
-    def rewards(self, job_id: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """A succeeded job's learned rewards: the baseline, and each task's keyed by task id."""
-        ids = self.job_rewards(job_id)
-        return self.reward_values(ids.baseline), {t: self.reward_values(r) for t, r in ids.tasks.items()}
+    def key_states(self, reward_id: str, *, top: int = 10) -> dict[str, Any]:
+        """`GET /v1/rewards/{id}/key-states`: the ``top`` states where a task reward departs most from its
+        baseline."""
+        return self._call(ops.key_states(reward_id, top))
 
+    # -------------------------------------------------------------- motion
 
-class _NoStream(Exception):
-    """The server did not answer with an event stream (an older server): the client polls instead."""
+    def motion_summary(self, demonstrator_id: str) -> dict[str, Any]:
+        """`GET /v1/demonstrators/{id}/motion-summary`: per direction, reach and path descriptors with
+        intervals, and the learned readout (`ConflictError` without recordings)."""
+        return self._call(ops.motion_summary(demonstrator_id))
 
+    def compare_motion(self, a: str, b: str) -> dict[str, Any]:
+        """`POST /v1/motion-comparisons`: demonstrator ``b`` minus ``a``, per direction."""
+        return self._call(ops.compare_motion(a, b))
 
-def _sse_messages(lines: Iterable[str]) -> Iterator[tuple[str | None, str | None, dict[str, Any]]]:
-    """(id, event, JSON data) of each Server-Sent Events message; comment and retry lines yield nothing."""
-    event_id: str | None = None
-    kind: str | None = None
-    data: list[str] = []
-    for line in lines:
-        if line == "":
-            if data:
-                yield event_id, kind, json.loads("\n".join(data))
-            event_id, kind, data = None, None, []
-            continue
-        if line.startswith(":"):
-            continue
-        name, _, value = line.partition(":")
-        value = value.removeprefix(" ")
-        if name == "id":
-            event_id = value
-        elif name == "event":
-            kind = value
-        elif name == "data":
-            data.append(value)
+    def compare_motion_png(self, a: str, b: str) -> bytes:
+        """`POST /v1/motion-comparisons?format=png`: the comparison drawn."""
+        return self._call(ops.compare_motion_png(a, b))
 
+    # -------------------------------------------------------------- webhooks
 
-def progress_bar(state: JobState, *, width: int = 30) -> str:
-    """One line: ``job_… running [#######-------]  120/500`` (no bar before the first step)."""
-    if state.step is None or not state.max_steps:
-        return f"{state.id} {state.status}"
-    done = min(1.0, state.step / state.max_steps)
-    bar = "#" * round(done * width) + "-" * (width - round(done * width))
-    return f"{state.id} {state.status} [{bar}] {state.step:>5}/{state.max_steps}"
+    def create_webhook(self, url: str, *, events: Sequence[WebhookEvent] | None = None) -> dict[str, Any]:
+        """`POST /v1/webhooks`: the webhook with its signing ``secret`` (shown this once)."""
+        return self._call(ops.create_webhook(url, events))
 
+    def list_webhooks(self, *, limit: int | None = None, cursor: str | None = None) -> Page:
+        """`GET /v1/webhooks`: one page of the lab's webhooks."""
+        return self._call(ops.list_webhooks(limit, cursor))
 
-def _npz(arrays: Mapping[str, np.ndarray]) -> bytes:
-    """The arrays as an ``.npz`` archive (never pickled)."""
-    buffer = io.BytesIO()
-    named: dict[str, Any] = {name: np.asarray(value) for name, value in arrays.items()}
-    np.savez(buffer, **named)
-    return buffer.getvalue()
+    def iter_webhooks(self, *, page_size: int = 100) -> Iterator[dict[str, Any]]:
+        """Every webhook of the lab, page after page."""
+        return self._pages(lambda cursor: ops.list_webhooks(page_size, cursor))
 
+    def get_webhook(self, webhook_id: str) -> dict[str, Any]:
+        """`GET /v1/webhooks/{id}` with its recent deliveries."""
+        return self._call(ops.get_webhook(webhook_id))
 
-def _states_actions(t: TrajectoryLike | tuple[Sequence[int], Sequence[int]]) -> tuple[Any, Any]:
-    """(states, actions) of a trajectory object or pair."""
-    if isinstance(t, tuple):
-        return t
-    return t.states, t.actions
-
-
-def _job_state(body: dict[str, Any]) -> JobState:
-    """The `JobState` of a job resource (progress is null until the worker reports a step)."""
-    progress = body.get("progress") or {}
-    return JobState(
-        id=str(body["id"]),
-        status=str(body["status"]),
-        step=progress.get("step"),
-        max_steps=progress.get("max_steps"),
-        error=body.get("error"),
-        started_at=_when(body.get("started_at")),
-        finished_at=_when(body.get("finished_at")),
-        attempt=int(body.get("attempts") or 0),
-        updated_at=_when(body.get("updated_at")),
-    )
-
-
-def _when(text: str | None) -> datetime | None:
-    """An ISO 8601 timestamp of the API, or None."""
-    return datetime.fromisoformat(text) if text else None
+    def delete_webhook(self, webhook_id: str) -> None:
+        """`DELETE /v1/webhooks/{id}`."""
+        self._call(ops.delete_webhook(webhook_id))

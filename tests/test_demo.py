@@ -14,10 +14,10 @@ import httpx
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from sqlalchemy import create_engine, select
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from metairl_cli.demo import API_KEY_ENV, resolve_api_key, run_demo, upload_world
+from metairl_cli.demo import API_KEY_ENV, NoLocalKey, resolve_api_key, run_demo, upload_world
 from metairl_cli.demo_experiment import (
     QUICK,
     DemoSettings,
@@ -28,10 +28,11 @@ from metairl_cli.demo_experiment import (
     plan_jobs,
 )
 from metairl_cli.demo_report import FIGURE_FILE, HEATMAP_FILES, pearson_figure, summarize, write_report
-from metairl_cli.serve import LOCAL_LAB
+from metairl_cli.serve import LOCAL_LAB, local_key
 from metairl_client import Client, MetairlError
 from metairl_engine.metrics import pearson
 from service.settings import Settings
+from service.store.db import make_engine, migrate
 from service.store.models.labs import Lab
 from tests.served import free_port, metairl_serve
 
@@ -194,20 +195,36 @@ def test_upload_and_submit_against_the_api(client: TestClient, api_key: str) -> 
     assert stored["task_ids"] == list(world.task_ids[:2]) and stored["config"]["sharing"] == "huber"
 
 
-def test_api_key_comes_from_the_argument_the_environment_or_the_local_database(
+def test_api_key_comes_from_the_argument_the_environment_or_the_key_serve_keeps(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    settings = Settings(data_dir=tmp_path)
+    settings = Settings(data_dir=tmp_path / "var")
     monkeypatch.setenv(API_KEY_ENV, "from-env")
     assert resolve_api_key("given", settings=settings) == "given"
     assert resolve_api_key(None, settings=settings) == "from-env"
     monkeypatch.delenv(API_KEY_ENV)
-    key = resolve_api_key(None, settings=settings)
-    assert key.startswith("mirl_") and resolve_api_key(None, settings=settings) != key
-    engine = create_engine(settings.resolved_database_url)
+    engine = make_engine(settings)  # the data folder as `metairl serve` leaves it: migrated, the key kept
+    migrate(engine)
+    with Session(engine) as session:
+        kept = local_key(session, settings.data_dir)
+    assert resolve_api_key(None, settings=settings) == kept
+    assert resolve_api_key(None, settings=settings) == kept  # reused, not a new key per run
     with Session(engine) as session:
         assert session.execute(select(Lab.name)).scalars().all() == [LOCAL_LAB]
     engine.dispose()
+
+
+def test_the_demo_started_away_from_the_data_folder_creates_no_database_and_says_why(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.delenv(API_KEY_ENV, raising=False)
+    elsewhere = Settings(data_dir=tmp_path / "var")
+    with pytest.raises(NoLocalKey, match=r"no metairl database at .*metairl\.db"):
+        resolve_api_key(None, settings=elsewhere)
+    monkeypatch.setattr("metairl_cli.demo.get_settings", lambda: elsewhere)
+    assert run_demo(url="http://127.0.0.1:9", api_key=None, out=str(tmp_path / "out"), quick=True) == 2
+    assert "METAIRL_DATA_DIR" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_the_demo_never_imports_torch() -> None:

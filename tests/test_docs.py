@@ -1,6 +1,6 @@
 """The documentation's examples are executed, so they cannot rot.
 
-- Python: the fenced blocks marked ``python`` in README.md and docs/api.md run in order, in one namespace
+- Python: the fenced blocks marked ``python`` in README.md, docs/api.md and docs/client.md run in order, in one namespace
   per file, against the in-process app (``httpx.Client`` is swapped for FastAPI's TestClient, which takes
   the same ``base_url`` and ``headers``). Blocks marked ``python worker`` need a job to finish: the first
   test stops before them, a second (``@pytest.mark.worker``) runs every block with a real worker process.
@@ -31,7 +31,7 @@ from service.api.app import create_app
 from service.settings import Settings
 
 REPO = Path(__file__).resolve().parents[1]
-EXECUTED = ("README.md", "docs/api.md")
+EXECUTED = ("README.md", "docs/api.md", "docs/client.md")
 """Files whose ``python`` blocks are executed."""
 DOCUMENTED = ("README.md", "docs/api.md", "docs/architecture.md")
 """Files written for these tests: their curl lines, METAIRL_* names and links are checked."""

@@ -3,7 +3,7 @@
 - `metairl_engine` imports nothing of ours;
 - `service` imports `metairl_engine` only, and only its numpy-only modules (never one that imports torch);
 - `worker` imports `service` and `metairl_engine`;
-- `metairl_client` imports nothing of ours (httpx, numpy and the standard library only);
+- `metairl_client` imports nothing of ours (httpx, httpx-sse, numpy, tqdm and the standard library only);
 - `metairl_cli` may import anything; nothing of ours imports it;
 - the API process (everything `service.api.app` imports, transitively) never imports torch;
 - inside `service`, rooms stacked bottom to top (`SERVICE_LAYERS`): a module imports only its own room and
@@ -30,7 +30,7 @@ ALLOWED: dict[str, set[str]] = {
     "metairl_client": {"metairl_client"},
     "metairl_cli": set(OURS),
 }
-CLIENT_THIRD_PARTY = {"httpx", "numpy"}
+CLIENT_THIRD_PARTY = {"httpx", "httpx_sse", "numpy", "tqdm"}
 # Inside `service`, bottom to top; a module belongs to the room of its longest matching prefix.
 SERVICE_LAYERS = (
     ("service", "service.settings", "service.problems", "service.sizes"),
@@ -164,7 +164,7 @@ def test_service_uses_only_numpy_only_engine_modules() -> None:
     assert not broken, "\n".join(broken)
 
 
-def test_the_client_needs_only_httpx_numpy_and_the_standard_library() -> None:
+def test_the_client_needs_only_its_declared_libraries_and_the_standard_library() -> None:
     broken = sorted(
         f"{module} imports {name}"
         for module in MODULES

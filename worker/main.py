@@ -19,13 +19,15 @@ def prepare_environment(*, concurrency: int) -> None:
     os.environ.setdefault("GOMP_SPINCOUNT", "3000")
 
 
-def run_worker(*, concurrency: int) -> int:
-    """Run a worker until it is stopped (SIGTERM: finish the running jobs; SIGQUIT: now); the exit code."""
+def run_worker(*, concurrency: int, quiet: bool = False) -> int:
+    """Run a worker until it is stopped (SIGTERM: finish the running jobs; SIGQUIT: now); the exit code.
+    ``quiet`` leaves out Celery's start-up banner (`metairl serve` prints its own summary)."""
     prepare_environment(concurrency=concurrency)
     from worker.celery_app import app
 
     code = app.start(
         argv=[
+            *(["--quiet"] if quiet else []),
             "worker",
             f"--concurrency={concurrency}",
             "--loglevel=INFO",

@@ -200,7 +200,7 @@ def test_client_wait_follows_the_stream_and_falls_back_to_polling(
     state = Client(client).wait(job_id, poll_s=0.1, stream=bar)
     writer.join()
     assert (state.status, state.error) == ("failed", "no")
-    assert "[###############---------------]     5/10" in bar.getvalue()
+    assert "5/10" in bar.getvalue()
     # One request for the stream, one before and one after it: no polling.
     assert requests == [f"GET /v1/jobs/{job_id}", f"GET /v1/jobs/{job_id}/events", f"GET /v1/jobs/{job_id}"]
 

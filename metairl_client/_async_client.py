@@ -1,0 +1,450 @@
+"""`AsyncClient`, the asyncio twin of `Client`: the same methods with the same arguments, awaited
+(``iter_*`` are async iterators). Both send the calls of `_operations`; `tests/client` checks they match."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import copy
+from collections.abc import AsyncIterator, Callable, Iterable, Mapping, Sequence
+from pathlib import Path
+from types import TracebackType
+from typing import IO, Any, TypeVar
+
+import httpx
+import numpy as np
+
+from metairl_client import _operations as ops
+from metairl_client._client import DEFAULT_TIMEOUT_S, client_headers
+from metairl_client._errors import error_from_response
+from metairl_client._models import JobRewardIds, JobState, Page, Trajectory
+from metairl_client._operations import JobStatusName, Quantity, RewardFormat, WebhookEvent
+from metairl_client._sse import aevents, is_event_stream
+from metairl_client._transport import Call, Retries, Timeout, send_async
+from metairl_client._waiting import STREAM_FAILURES, NoStream, Waiter
+
+T = TypeVar("T")
+
+
+class AsyncClient:
+    """`Client` for asyncio: ``async with AsyncClient(url, api_key) as lab: job = await lab.get_job(id)``, or
+    ``AsyncClient(http)`` around an `httpx.AsyncClient` that already carries base URL and key."""
+
+    def __init__(
+        self,
+        url: str | httpx.AsyncClient,
+        api_key: str | None = None,
+        *,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
+        max_retries: int = Retries.max_retries,
+    ):
+        if isinstance(url, str):
+            headers = client_headers(api_key)
+            self.http = httpx.AsyncClient(base_url=url.rstrip("/"), headers=headers, timeout=timeout_s)
+        else:
+            self.http = url
+        self.retries = Retries(max_retries=max_retries)
+        self.timeout: Timeout = httpx.USE_CLIENT_DEFAULT
+
+    @classmethod
+    def connect(
+        cls,
+        *,
+        url: str,
+        api_key: str,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
+        max_retries: int = Retries.max_retries,
+    ) -> AsyncClient:
+        """A client of the service at ``url`` authenticating with ``api_key`` (Bearer)."""
+        return cls(url, api_key, timeout_s=timeout_s, max_retries=max_retries)
+
+    def with_options(self, *, max_retries: int | None = None, timeout_s: float | None = None) -> AsyncClient:
+        """A client on the same connections with other retries or timeout (per request)."""
+        other = copy.copy(self)
+        if max_retries is not None:
+            other.retries = Retries(max_retries=max_retries)
+        if timeout_s is not None:
+            other.timeout = timeout_s
+        return other
+
+    async def __aenter__(self) -> AsyncClient:
+        return self
+
+    async def __aexit__(
+        self, kind: type[BaseException] | None, error: BaseException | None, trace: TracebackType | None
+    ) -> None:
+        await self.close()
+
+    async def close(self) -> None:
+        """Close the underlying HTTP connections."""
+        await self.http.aclose()
+
+    async def _call(self, call: Call[T]) -> T:
+        """Send one call (with retries) and read its answer."""
+        return await send_async(self.http, call, self.retries, self.timeout)
+
+    async def _pages(self, page: Callable[[str | None], Call[Page]]) -> AsyncIterator[dict[str, Any]]:
+        """Every item of a list, fetching page after page as the iteration reaches it."""
+        cursor: str | None = None
+        while True:
+            current = await self._call(page(cursor))
+            for item in current.data:
+                yield item
+            if not (current.has_more and current.next_cursor):
+                return
+            cursor = current.next_cursor
+
+    # -------------------------------------------------------------- service
+
+    async def check_health(self) -> None:
+        """`GET /healthz`: fails early, with a clear error, when nothing answers at the URL."""
+        await self._call(ops.health())
+
+    async def check_ready(self) -> dict[str, Any]:
+        """`GET /readyz`: whether the service can serve (database reachable); `ServiceUnavailableError` if not."""
+        return await self._call(ops.readiness())
+
+    # -------------------------------------------------------------- MDPs
+
+    async def create_mdp(self, body: Mapping[str, Any]) -> str:
+        """`POST /v1/mdps` with an explicit or grid MDP body; returns the MDP id."""
+        return await self._call(ops.create_mdp(body))
+
+    async def upload_mdp(
+        self,
+        *,
+        name: str,
+        gamma: float,
+        arrays: Mapping[str, np.ndarray],
+        layout: tuple[int, int, int] | None = None,
+        n_states: int | None = None,
+        n_actions: int | None = None,
+    ) -> str:
+        """`POST /v1/mdps` with the arrays as an ``.npz`` upload (``features``, and ``next_state`` or
+        ``s``, ``a``, ``next``, ``p``); ``layout`` is (width, height, channels). Returns the MDP id."""
+        call = ops.upload_mdp(
+            name=name, gamma=gamma, arrays=arrays, layout=layout, n_states=n_states, n_actions=n_actions
+        )
+        return await self._call(call)
+
+    async def list_mdps(self, *, limit: int | None = None, cursor: str | None = None) -> Page:
+        """`GET /v1/mdps`: one page of the lab's MDPs."""
+        return await self._call(ops.list_mdps(limit, cursor))
+
+    def iter_mdps(self, *, page_size: int = 100) -> AsyncIterator[dict[str, Any]]:
+        """Every MDP of the lab, page after page."""
+        return self._pages(lambda cursor: ops.list_mdps(page_size, cursor))
+
+    async def get_mdp(self, mdp_id: str) -> dict[str, Any]:
+        """`GET /v1/mdps/{id}`: the MDP resource (``n_states``, ``n_actions``, ``gamma``, checksums, …)."""
+        return await self._call(ops.get_mdp(mdp_id))
+
+    async def delete_mdp(self, mdp_id: str) -> None:
+        """`DELETE /v1/mdps/{id}` (`ConflictError` while a task uses it)."""
+        await self._call(ops.delete_mdp(mdp_id))
+
+    async def mdp_arrays(self, mdp_id: str) -> dict[str, np.ndarray]:
+        """`GET /v1/mdps/{id}/arrays`: the MDP's arrays under the names `upload_mdp` takes."""
+        return await self._call(ops.mdp_arrays(mdp_id))
+
+    # -------------------------------------------------------------- demonstrators, tasks, demonstrations
+
+    async def create_demonstrator(self, *, name: str, metadata: Mapping[str, Any] | None = None) -> str:
+        """`POST /v1/demonstrators`; returns the demonstrator id."""
+        return await self._call(ops.create_demonstrator(name, metadata))
+
+    async def list_demonstrators(self, *, limit: int | None = None, cursor: str | None = None) -> Page:
+        """`GET /v1/demonstrators`: one page of the lab's demonstrators."""
+        return await self._call(ops.list_demonstrators(limit, cursor))
+
+    def iter_demonstrators(self, *, page_size: int = 100) -> AsyncIterator[dict[str, Any]]:
+        """Every demonstrator of the lab, page after page."""
+        return self._pages(lambda cursor: ops.list_demonstrators(page_size, cursor))
+
+    async def get_demonstrator(self, demonstrator_id: str) -> dict[str, Any]:
+        """`GET /v1/demonstrators/{id}`."""
+        return await self._call(ops.get_demonstrator(demonstrator_id))
+
+    async def delete_demonstrator(self, demonstrator_id: str) -> None:
+        """`DELETE /v1/demonstrators/{id}` with its tasks, recordings, jobs and rewards."""
+        await self._call(ops.delete_demonstrator(demonstrator_id))
+
+    async def create_task(
+        self, demonstrator_id: str, *, name: str, mdp_id: str, metadata: Mapping[str, Any] | None = None
+    ) -> str:
+        """`POST /v1/demonstrators/{id}/tasks`; returns the task id."""
+        return await self._call(ops.create_task(demonstrator_id, name, mdp_id, metadata))
+
+    async def list_tasks(
+        self, demonstrator_id: str, *, limit: int | None = None, cursor: str | None = None
+    ) -> Page:
+        """`GET /v1/demonstrators/{id}/tasks`: one page of the demonstrator's tasks."""
+        return await self._call(ops.list_tasks(demonstrator_id, limit, cursor))
+
+    def iter_tasks(self, demonstrator_id: str, *, page_size: int = 100) -> AsyncIterator[dict[str, Any]]:
+        """Every task of the demonstrator, page after page."""
+        return self._pages(lambda cursor: ops.list_tasks(demonstrator_id, page_size, cursor))
+
+    async def get_task(self, task_id: str) -> dict[str, Any]:
+        """`GET /v1/tasks/{id}`."""
+        return await self._call(ops.get_task(task_id))
+
+    async def delete_task(self, task_id: str) -> None:
+        """`DELETE /v1/tasks/{id}` with its demonstrations."""
+        await self._call(ops.delete_task(task_id))
+
+    async def put_true_reward(self, task_id: str, values: np.ndarray | Sequence[float]) -> None:
+        """`PUT /v1/tasks/{id}/true-reward`: the simulation's ground truth, one value per state."""
+        await self._call(ops.put_true_reward(task_id, values))
+
+    async def get_true_reward(self, task_id: str) -> dict[str, Any]:
+        """`GET /v1/tasks/{id}/true-reward`: the stored ground truth (``values``, ``sha256``, …)."""
+        return await self._call(ops.get_true_reward(task_id))
+
+    async def add_demonstrations(self, task_id: str, trajectories: Iterable[Trajectory]) -> str:
+        """`POST /v1/tasks/{id}/demonstrations` with every trajectory, given as objects with ``states`` and
+        ``actions`` or as (states, actions) pairs of integer arrays. Returns the upload batch's id."""
+        return await self._call(ops.add_demonstrations(task_id, trajectories))
+
+    async def list_demonstrations(
+        self, task_id: str, *, limit: int | None = None, cursor: str | None = None
+    ) -> Page:
+        """`GET /v1/tasks/{id}/demonstrations`: one page of the task's demonstrations."""
+        return await self._call(ops.list_demonstrations(task_id, limit, cursor))
+
+    def iter_demonstrations(self, task_id: str, *, page_size: int = 100) -> AsyncIterator[dict[str, Any]]:
+        """Every demonstration of the task, page after page."""
+        return self._pages(lambda cursor: ops.list_demonstrations(task_id, page_size, cursor))
+
+    # -------------------------------------------------------------- recordings
+
+    async def upload_recording(
+        self,
+        demonstrator_id: str,
+        file: Path | bytes,
+        *,
+        mdp_id: str,
+        bounds: Mapping[str, float],
+        name: str | None = None,
+        plate: Mapping[str, Any] | None = None,
+    ) -> dict[str, Any]:
+        """`POST /v1/demonstrators/{id}/recordings` with a recording file on a plate of ``bounds`` (``x_min``,
+        ``x_max``, ``y_min``, ``y_max``), mapped onto the velocity grid ``mdp_id``: a CSV of centre-of-pressure
+        samples (``t,x,y`` and optionally ``instruction``), a C3D file, or a CSV of plate forces and moments;
+        ``plate`` says how to read a force-plate file (docs/motion.md). Returns the recording."""
+        return await self._call(
+            ops.upload_recording(demonstrator_id, file, mdp_id=mdp_id, bounds=bounds, name=name, plate=plate)
+        )
+
+    async def list_recordings(
+        self, demonstrator_id: str, *, limit: int | None = None, cursor: str | None = None
+    ) -> Page:
+        """`GET /v1/demonstrators/{id}/recordings`: one page of the demonstrator's recordings."""
+        return await self._call(ops.list_recordings(demonstrator_id, limit, cursor))
+
+    def iter_recordings(self, demonstrator_id: str, *, page_size: int = 100) -> AsyncIterator[dict[str, Any]]:
+        """Every recording of the demonstrator, page after page."""
+        return self._pages(lambda cursor: ops.list_recordings(demonstrator_id, page_size, cursor))
+
+    async def recording_demonstrations(
+        self, recording_id: str, *, label: str | None = None
+    ) -> dict[str, Any]:
+        """`GET /v1/recordings/{id}/demonstrations`: the trajectories cut from a recording (one label's)."""
+        return await self._call(ops.recording_demonstrations(recording_id, label))
+
+    # -------------------------------------------------------------- jobs
+
+    async def submit_job(
+        self,
+        demonstrator_id: str,
+        *,
+        task_ids: Sequence[str] | None = None,
+        config: Mapping[str, Any] | None = None,
+    ) -> JobState:
+        """`POST /v1/jobs` (202): fit the demonstrator's tasks (all unless ``task_ids``); the new job's state."""
+        return await self._call(ops.submit_job(demonstrator_id, task_ids, config))
+
+    async def list_jobs(
+        self,
+        *,
+        status: JobStatusName | None = None,
+        demonstrator_id: str | None = None,
+        limit: int | None = None,
+        cursor: str | None = None,
+    ) -> Page:
+        """`GET /v1/jobs`: one page of the lab's jobs, filtered by status and demonstrator."""
+        return await self._call(ops.list_jobs(status, demonstrator_id, limit, cursor))
+
+    def iter_jobs(
+        self, *, status: JobStatusName | None = None, demonstrator_id: str | None = None, page_size: int = 100
+    ) -> AsyncIterator[dict[str, Any]]:
+        """Every job of the lab (filtered by status and demonstrator), page after page."""
+        return self._pages(lambda cursor: ops.list_jobs(status, demonstrator_id, page_size, cursor))
+
+    async def get_job(self, job_id: str) -> JobState:
+        """`GET /v1/jobs/{id}`: status and progress."""
+        return await self._call(ops.get_job(job_id))
+
+    async def delete_job(self, job_id: str) -> None:
+        """`DELETE /v1/jobs/{id}` with its events and rewards (`ConflictError` while queued or running)."""
+        await self._call(ops.delete_job(job_id))
+
+    async def cancel_job(self, job_id: str) -> JobState:
+        """`POST /v1/jobs/{id}/cancel`: a queued job is cancelled at once, a running one within seconds;
+        the job's state (`ConflictError` when it already finished)."""
+        return await self._call(ops.cancel_job(job_id))
+
+    async def list_events(self, job_id: str, *, limit: int | None = None, cursor: str | None = None) -> Page:
+        """`GET /v1/jobs/{id}/events`: one page of the job's progress log and status changes."""
+        return await self._call(ops.list_events(job_id, limit, cursor))
+
+    def iter_events(self, job_id: str, *, page_size: int = 100) -> AsyncIterator[dict[str, Any]]:
+        """Every stored event of the job, page after page (`wait` follows them live)."""
+        return self._pages(lambda cursor: ops.list_events(job_id, page_size, cursor))
+
+    async def wait(
+        self,
+        job_id: str,
+        *,
+        poll_s: float = 0.5,
+        timeout_s: float | None = None,
+        progress: bool = True,
+        stream: IO[str] | None = None,
+    ) -> JobState:
+        """Follow the job until it succeeds, fails or is cancelled, with a tqdm bar (see `Client.wait`)."""
+        with Waiter(job_id, timeout_s=timeout_s, progress=progress, stream=stream) as waiter:
+            waiter.show(await self.get_job(job_id))
+            if not waiter.finished:
+                with contextlib.suppress(NoStream):
+                    await self._follow(waiter)
+            while not waiter.finished:
+                waiter.check_deadline()
+                await asyncio.sleep(poll_s)
+                waiter.show(await self.get_job(job_id))
+            return waiter.current
+
+    async def _follow(self, waiter: Waiter) -> None:
+        """Read the job's event stream until its final status (see `Client._follow`)."""
+        path = ops.events_path(waiter.job_id)
+        failures = 0
+        while True:
+            try:
+                async with self.http.stream("GET", path, headers=waiter.stream_headers()) as response:
+                    if response.is_error:
+                        await response.aread()
+                        raise error_from_response(response)
+                    if not is_event_stream(response):
+                        raise NoStream
+                    async for event_id, kind, data in aevents(response):
+                        failures = 0
+                        if waiter.on_event(event_id, kind, data):
+                            waiter.show(await self.get_job(waiter.job_id))
+                            return
+            except httpx.TransportError as exc:
+                failures += 1
+                if failures > STREAM_FAILURES:
+                    raise NoStream from exc
+                await asyncio.sleep(0.5 * failures)
+            waiter.check_deadline()
+            waiter.show(await self.get_job(waiter.job_id))
+            if waiter.finished:
+                return
+
+    # -------------------------------------------------------------- results
+
+    async def job_rewards(self, job_id: str, *, exclude_top_truth: bool = False) -> JobRewardIds:
+        """`GET /v1/jobs/{id}/rewards`: reward ids of the baseline and of every task (`ConflictError` before
+        the job succeeded); ``exclude_top_truth`` adds truth scores without the goal states."""
+        return await self._call(ops.job_rewards(job_id, exclude_top_truth))
+
+    async def reward_values(self, reward_id: str, *, quantity: Quantity = "reward") -> np.ndarray:
+        """`GET /v1/rewards/{id}?format=npy`: a reward (or a task's ``value`` or ``policy``) as float64."""
+        return await self._call(ops.reward_values(reward_id, quantity))
+
+    async def download_reward(
+        self,
+        reward_id: str,
+        *,
+        format: RewardFormat = "json",
+        quantity: Quantity = "reward",
+        overlay: bool = False,
+    ) -> bytes:
+        """`GET /v1/rewards/{id}?format=…`: a reward, value function or policy in any format, as bytes
+        (``overlay`` draws the demonstrations on a PNG)."""
+        return await self._call(ops.download_reward(reward_id, format, quantity, overlay))
+
+    async def reward_png(self, reward_id: str) -> bytes:
+        """`GET /v1/rewards/{id}?format=png`: the reward as a heatmap (an MDP with a grid layout)."""
+        return await self.download_reward(reward_id, format="png")
+
+    async def rewards(self, job_id: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """A succeeded job's learned rewards: the baseline, and each task's keyed by task id."""
+        ids = await self.job_rewards(job_id)
+        return await self.reward_values(ids.baseline), {
+            t: await self.reward_values(r) for t, r in ids.tasks.items()
+        }
+
+    async def compare(
+        self,
+        reward_id: str,
+        other: str | Sequence[float] | np.ndarray,
+        *,
+        states: str = "all",
+        other_is_task: bool = False,
+    ) -> dict[str, Any]:
+        """`POST /v1/comparisons`: learned reward ``reward_id`` against ``other`` — another reward id, a
+        task id (``other_is_task``: its true reward) or one value per state — on ``all`` states or the
+        ``visited`` ones. Returns the comparison (``pearson``, ``spearman``, ``epic_distance``, …)."""
+        return await self._call(ops.compare(reward_id, other, states, other_is_task))
+
+    async def comparison_matrix(self, job_id: str) -> dict[str, Any]:
+        """`GET /v1/jobs/{id}/comparison-matrix`: pairwise Pearson of the job's rewards."""
+        return await self._call(ops.comparison_matrix(job_id))
+
+    async def comparison_matrix_png(self, job_id: str) -> bytes:
+        """`GET /v1/jobs/{id}/comparison-matrix?format=png`: the matrix drawn as a PNG."""
+        return await self._call(ops.comparison_matrix_png(job_id))
+
+    async def key_states(self, reward_id: str, *, top: int = 10) -> dict[str, Any]:
+        """`GET /v1/rewards/{id}/key-states`: the ``top`` states where a task reward departs most from its
+        baseline."""
+        return await self._call(ops.key_states(reward_id, top))
+
+    # -------------------------------------------------------------- motion
+
+    async def motion_summary(self, demonstrator_id: str) -> dict[str, Any]:
+        """`GET /v1/demonstrators/{id}/motion-summary`: per direction, reach and path descriptors with
+        intervals, and the learned readout (`ConflictError` without recordings)."""
+        return await self._call(ops.motion_summary(demonstrator_id))
+
+    async def compare_motion(self, a: str, b: str) -> dict[str, Any]:
+        """`POST /v1/motion-comparisons`: demonstrator ``b`` minus ``a``, per direction."""
+        return await self._call(ops.compare_motion(a, b))
+
+    async def compare_motion_png(self, a: str, b: str) -> bytes:
+        """`POST /v1/motion-comparisons?format=png`: the comparison drawn."""
+        return await self._call(ops.compare_motion_png(a, b))
+
+    # -------------------------------------------------------------- webhooks
+
+    async def create_webhook(
+        self, url: str, *, events: Sequence[WebhookEvent] | None = None
+    ) -> dict[str, Any]:
+        """`POST /v1/webhooks`: the webhook with its signing ``secret`` (shown this once)."""
+        return await self._call(ops.create_webhook(url, events))
+
+    async def list_webhooks(self, *, limit: int | None = None, cursor: str | None = None) -> Page:
+        """`GET /v1/webhooks`: one page of the lab's webhooks."""
+        return await self._call(ops.list_webhooks(limit, cursor))
+
+    def iter_webhooks(self, *, page_size: int = 100) -> AsyncIterator[dict[str, Any]]:
+        """Every webhook of the lab, page after page."""
+        return self._pages(lambda cursor: ops.list_webhooks(page_size, cursor))
+
+    async def get_webhook(self, webhook_id: str) -> dict[str, Any]:
+        """`GET /v1/webhooks/{id}` with its recent deliveries."""
+        return await self._call(ops.get_webhook(webhook_id))
+
+    async def delete_webhook(self, webhook_id: str) -> None:
+        """`DELETE /v1/webhooks/{id}`."""
+        await self._call(ops.delete_webhook(webhook_id))

@@ -1,0 +1,132 @@
+"""What the client returns beyond plain JSON: a job's state, a job's reward ids, a page of a list."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any, Protocol
+
+import numpy as np
+
+TERMINAL_STATUSES = frozenset({"succeeded", "failed", "cancelled"})
+"""Job statuses after which a job never changes again."""
+
+
+class TrajectoryLike(Protocol):
+    """A trajectory: integer arrays of visited states and the actions taken (one fewer, or as many)."""
+
+    @property
+    def states(self) -> np.ndarray: ...
+
+    @property
+    def actions(self) -> np.ndarray: ...
+
+
+Trajectory = TrajectoryLike | tuple[Sequence[int], Sequence[int]]
+"""A trajectory object, or a (states, actions) pair."""
+
+
+@dataclass(frozen=True)
+class JobState:
+    """A job's status, its progress step (None before the first) and its error when it failed."""
+
+    id: str
+    status: str
+    step: int | None
+    max_steps: int | None
+    error: str | None
+    started_at: datetime | None = None
+    finished_at: datetime | None = None
+    attempt: int = 0
+    """The attempt the status and step belong to (0 before the first)."""
+    updated_at: datetime | None = None
+    """When the status last changed."""
+
+    @property
+    def finished(self) -> bool:
+        """True once the job succeeded, failed or was cancelled."""
+        return self.status in TERMINAL_STATUSES
+
+    def already_shows(self, kind: str | None, event: dict[str, Any]) -> bool:
+        """Whether this snapshot already reflects a job event (``kind`` and its JSON data): an earlier
+        attempt's, a status change before `updated_at`, or a progress step of this attempt at or before
+        `step`. A stream opened on a running job replays such history first."""
+        attempt = int(event.get("attempt", 0))
+        if attempt != self.attempt:
+            return attempt < self.attempt
+        if kind == "status":
+            at = when(event.get("at"))
+            return at is not None and self.updated_at is not None and at <= self.updated_at
+        step = event.get("step")
+        return kind == "progress" and step is not None and self.step is not None and step <= self.step
+
+    @classmethod
+    def from_json(cls, body: dict[str, Any]) -> JobState:
+        """The state of a job resource (progress is null until the worker reports a step)."""
+        progress = body.get("progress") or {}
+        return cls(
+            id=str(body["id"]),
+            status=str(body["status"]),
+            step=progress.get("step"),
+            max_steps=progress.get("max_steps"),
+            error=body.get("error"),
+            started_at=when(body.get("started_at")),
+            finished_at=when(body.get("finished_at")),
+            attempt=int(body.get("attempts") or 0),
+            updated_at=when(body.get("updated_at")),
+        )
+
+
+@dataclass(frozen=True)
+class JobRewardIds:
+    """`GET /v1/jobs/{id}/rewards`: the baseline's reward id and each task's, keyed by task id."""
+
+    baseline: str
+    tasks: dict[str, str]
+    task_names: dict[str, str] = field(default_factory=dict)
+    """Each task's name, keyed by task id."""
+    body: dict[str, Any] = field(default_factory=dict, repr=False)
+    """The whole answer (truth scores and summaries where the service gives them)."""
+
+    @classmethod
+    def from_json(cls, body: dict[str, Any]) -> JobRewardIds:
+        """Read the answer of `GET /v1/jobs/{id}/rewards`."""
+        return cls(
+            baseline=str(body["baseline"]["reward_id"]),
+            tasks={str(t["task_id"]): str(t["reward_id"]) for t in body["tasks"]},
+            task_names={str(t["task_id"]): str(t["task_name"]) for t in body["tasks"] if t.get("task_name")},
+            body=body,
+        )
+
+
+@dataclass(frozen=True)
+class Page:
+    """One page of a list: its items (``data``), whether more follow, and the cursor of the next page."""
+
+    data: list[dict[str, Any]]
+    has_more: bool
+    next_cursor: str | None
+
+    @classmethod
+    def from_json(cls, body: dict[str, Any]) -> Page:
+        """Read ``{"data", "has_more", "next_cursor"}``."""
+        return cls(
+            data=[dict(item) for item in body["data"]],
+            has_more=bool(body.get("has_more")),
+            next_cursor=body.get("next_cursor"),
+        )
+
+
+def progress_bar(state: JobState, *, width: int = 30) -> str:
+    """One line for a log: ``job_… running [#######-------]  120/500`` (no bar before the first step)."""
+    if state.step is None or not state.max_steps:
+        return f"{state.id} {state.status}"
+    done = min(1.0, state.step / state.max_steps)
+    bar = "#" * round(done * width) + "-" * (width - round(done * width))
+    return f"{state.id} {state.status} [{bar}] {state.step:>5}/{state.max_steps}"
+
+
+def when(text: str | None) -> datetime | None:
+    """An ISO 8601 timestamp of the API, or None."""
+    return datetime.fromisoformat(text) if text else None

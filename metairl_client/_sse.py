@@ -1,0 +1,41 @@
+"""A job's Server-Sent Events, parsed by httpx-sse: (id, event name, JSON data) per message with data."""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator, Iterator
+from typing import Any
+
+import httpx
+from httpx_sse import EventSource, ServerSentEvent
+
+STREAM_HEADERS = {"Accept": "text/event-stream", "Cache-Control": "no-store"}
+"""What asks the events route for the stream instead of the JSON list."""
+
+Event = tuple[str | None, str, dict[str, Any]]
+"""(the event id to resume after, the event name, its JSON data)."""
+
+
+def is_event_stream(response: httpx.Response) -> bool:
+    """Whether the answer is an event stream (an older server answers the JSON list)."""
+    return response.headers.get("content-type", "").startswith("text/event-stream")
+
+
+def _event(sse: ServerSentEvent) -> Event | None:
+    """The message as an `Event`; None for one without data (a retry hint or keep-alive)."""
+    if not sse.data:
+        return None
+    return sse.id or None, sse.event, dict(sse.json())
+
+
+def events(response: httpx.Response) -> Iterator[Event]:
+    """The stream's messages, as they arrive."""
+    for sse in EventSource(response).iter_sse():
+        if (event := _event(sse)) is not None:
+            yield event
+
+
+async def aevents(response: httpx.Response) -> AsyncIterator[Event]:
+    """The stream's messages, as they arrive (async)."""
+    async for sse in EventSource(response).aiter_sse():
+        if (event := _event(sse)) is not None:
+            yield event

@@ -1,0 +1,91 @@
+"""Following one job to its end: the state as events arrive, a tqdm bar of its steps, the deadline.
+
+The I/O (stream, polls, sleeps) is the clients'; this is what both do with what arrives."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from types import TracebackType
+from typing import IO, Any
+
+from tqdm import tqdm
+
+from metairl_client._models import JobState, when
+from metairl_client._sse import STREAM_HEADERS
+
+STREAM_FAILURES = 3
+"""Broken stream connections in a row after which the client polls instead."""
+
+
+class NoStream(Exception):
+    """The server did not answer with an event stream (an older server), or it kept failing: poll instead."""
+
+
+class Waiter:
+    """A job being waited for: its latest state, the last event id seen and the progress bar."""
+
+    def __init__(self, job_id: str, *, timeout_s: float | None, progress: bool, stream: IO[str] | None):
+        self.job_id = job_id
+        self.timeout_s = timeout_s
+        self.deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        self.state: JobState | None = None
+        self.last_event_id: str | None = None
+        self.bar = tqdm(desc=job_id, file=stream, disable=not progress, unit="step", dynamic_ncols=True)
+
+    def __enter__(self) -> Waiter:
+        return self
+
+    def __exit__(
+        self, kind: type[BaseException] | None, error: BaseException | None, trace: TracebackType | None
+    ) -> None:
+        self.bar.close()
+
+    @property
+    def current(self) -> JobState:
+        """The latest state (after the first `show`)."""
+        assert self.state is not None, "show the job's state first"
+        return self.state
+
+    @property
+    def finished(self) -> bool:
+        """Whether the job has reached a final status."""
+        return self.state is not None and self.state.finished
+
+    def show(self, state: JobState) -> None:
+        """Take a new state and draw it."""
+        self.state = state
+        if state.max_steps and self.bar.total != state.max_steps:
+            self.bar.reset(total=state.max_steps)
+        self.bar.set_description_str(f"{state.id} {state.status}", refresh=False)
+        self.bar.n = state.step or 0
+        self.bar.refresh()
+
+    def check_deadline(self) -> None:
+        """`TimeoutError` once ``timeout_s`` has passed."""
+        if self.deadline is not None and time.monotonic() > self.deadline:
+            raise TimeoutError(f"job {self.job_id} is still {self.current.status} after {self.timeout_s} s")
+
+    def stream_headers(self) -> dict[str, str]:
+        """The headers that open (or resume, after the last event seen) the job's event stream."""
+        resume = {"Last-Event-ID": self.last_event_id} if self.last_event_id else {}
+        return STREAM_HEADERS | resume
+
+    def on_event(self, event_id: str | None, kind: str, data: dict[str, Any]) -> bool:
+        """Apply one streamed event; True when it says the job finished (read its final row then)."""
+        self.check_deadline()
+        self.last_event_id = event_id or self.last_event_id
+        state = self.current
+        if state.already_shows(kind, data):
+            return False  # history the stream replays: drawing it would move the bar back
+        attempt = int(data.get("attempt", state.attempt))
+        if kind == "progress":
+            state = replace(state, step=data.get("step"), max_steps=data.get("max_steps"), attempt=attempt)
+        elif kind == "status":
+            state = replace(
+                state, status=str(data.get("status")), attempt=attempt, updated_at=when(data.get("at"))
+            )
+        else:
+            return False
+        self.show(state)
+        return state.finished
