@@ -23,10 +23,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from metairl_engine.errors import Issue, check, integer_issues
+from metairl_engine.errors import Issue, check
 from metairl_engine.grids import DIRECTION_NAMES, DIRECTIONS
 from metairl_engine.motion.recording import NO_INSTRUCTION, Bounds, Recording
-from metairl_engine.sim.patient import PLATE
+from metairl_engine.sim.patient import ExperimentSettings
 
 
 @dataclass(frozen=True)
@@ -56,15 +56,10 @@ CONTROLLER_STIMULATED = ControllerSession(
 
 
 @dataclass(frozen=True)
-class ControllerSettings:
-    """The simulated experiment (times in seconds, distances as fractions of the plate's half-size)."""
+class ControllerSettings(ExperimentSettings):
+    """The controller patient's experiment on top of the shared settings (times in seconds, distances as
+    fractions of the plate's half-size)."""
 
-    width: int = 100
-    height: int = 100
-    bounds: Bounds = PLATE
-    directions: tuple[str, ...] = DIRECTION_NAMES
-    """Instructions given, in order; each is repeated ``repetitions`` times in a row."""
-    repetitions: int = 3
     target: float = 0.7
     """Nominal distance of every instructed target from the centre (fraction of the half-size)."""
     weak_side: str = "left"
@@ -81,22 +76,18 @@ class ControllerSettings:
     """Delay between the cue (instruction starts) and the movement."""
     hold: float = 0.3
     """Time spent near the target before returning."""
-    sample_rate: float = 100.0
     sessions: tuple[ControllerSession, ...] = (CONTROLLER_UNSTIMULATED, CONTROLLER_STIMULATED)
-    seed: int = 0
 
     def issues(self, pointer: str = "/patient") -> list[Issue]:
         """Unusable settings."""
-        out = integer_issues(self, pointer, {"width": 8, "height": 8, "repetitions": 1})
+        out = super().issues(pointer)
         if not 0 < self.target < 1:
             out.append(Issue(f"{pointer}/target", "must be in (0, 1)"))
         if not 0 <= self.weakness < 1:
             out.append(Issue(f"{pointer}/weakness", "must be in [0, 1)"))
         if self.weak_side not in DIRECTION_NAMES:
             out.append(Issue(f"{pointer}/weak_side", f"must be one of {', '.join(DIRECTION_NAMES)}"))
-        if not set(self.directions) <= set(DIRECTION_NAMES) or not self.directions:
-            out.append(Issue(f"{pointer}/directions", f"must be some of {', '.join(DIRECTION_NAMES)}"))
-        return out + self.bounds.issues(f"{pointer}/bounds")
+        return out
 
 
 @dataclass(frozen=True, eq=False)

@@ -50,8 +50,9 @@ PLATE = Bounds(x_min=-0.2, x_max=0.2, y_min=-0.2, y_max=0.2)
 
 
 @dataclass(frozen=True)
-class PatientSettings:
-    """The simulated experiment: grid, plate, instructions and how the patient moves (times in seconds)."""
+class ExperimentSettings:
+    """What every simulated patient's experiment shares: the velocity grid, the plate, the instructions given,
+    the sample rate and the seed."""
 
     width: int = 100
     height: int = 100
@@ -59,6 +60,21 @@ class PatientSettings:
     directions: tuple[str, ...] = DIRECTION_NAMES
     """Instructions given, in order; each is repeated ``repetitions`` times in a row."""
     repetitions: int = 3
+    sample_rate: float = 100.0
+    seed: int = 0
+
+    def issues(self, pointer: str = "/patient") -> list[Issue]:
+        """Unusable settings (a subclass adds the checks of its own fields)."""
+        out = integer_issues(self, pointer, {"width": 8, "height": 8, "repetitions": 1})
+        if not set(self.directions) <= set(DIRECTION_NAMES) or not self.directions:
+            out.append(Issue(f"{pointer}/directions", f"must be some of {', '.join(DIRECTION_NAMES)}"))
+        return out + self.bounds.issues(f"{pointer}/bounds")
+
+
+@dataclass(frozen=True)
+class PatientSettings(ExperimentSettings):
+    """The planner patient's experiment: how it moves (times in seconds) on top of the shared settings."""
+
     reach: float = 0.5
     """How far the instructed goal lies from the centre, as a fraction of the plate's half-size."""
     goal_weight: float = 2.0
@@ -70,20 +86,16 @@ class PatientSettings:
     """Cells crossed per second."""
     pause: float = 0.8
     """Rest at the centre before each movement."""
-    sample_rate: float = 100.0
     sessions: tuple[SessionSettings, ...] = (UNSTIMULATED, STIMULATED)
-    seed: int = 0
 
     def issues(self, pointer: str = "/patient") -> list[Issue]:
         """Unusable settings."""
-        out = integer_issues(self, pointer, {"width": 8, "height": 8, "repetitions": 1})
+        out = super().issues(pointer)
         if not 0 < self.reach < 1:
             out.append(Issue(f"{pointer}/reach", "must be in (0, 1)"))
         if len(self.direction_preference) != len(DIRECTION_NAMES):
             out.append(Issue(f"{pointer}/direction_preference", f"must hold {len(DIRECTION_NAMES)} numbers"))
-        if not set(self.directions) <= set(DIRECTION_NAMES) or not self.directions:
-            out.append(Issue(f"{pointer}/directions", f"must be some of {', '.join(DIRECTION_NAMES)}"))
-        return out + self.bounds.issues(f"{pointer}/bounds")
+        return out
 
 
 @dataclass(frozen=True, eq=False)
