@@ -20,6 +20,7 @@ Duarte (2016, PeerJ 4:e2648) used for its published ``COParea``, ``COPvelo`` and
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -121,7 +122,8 @@ class SwayMeasures:
     psd_y: np.ndarray
 
     def descriptors(self) -> dict[str, float]:
-        """The scalar measures by name (everything but the rate, sample count, duration and spectra)."""
+        """The scalar measures by name (everything but the rate, sample count, duration and spectra); a
+        frequency of an axis with no power is NaN."""
         skip = {"rate_hz", "n_samples", "duration_s", "frequencies", "psd_x", "psd_y"}
         return {f.name: float(getattr(self, f.name)) for f in fields(self) if f.name not in skip}
 
@@ -193,7 +195,10 @@ def sway_measures(
     mean_fx, mean_fy = _mean_frequency(frequencies, psd_x), _mean_frequency(frequencies, psd_y)
     power_x, power_y = float(psd_x.sum()), float(psd_y.sum())
     total = power_x + power_y
-    mean_f = (mean_fx * power_x + mean_fy * power_y) / total if total > 0 else float("nan")
+    weighted = [
+        (f, w) for f, w in ((mean_fx, power_x), (mean_fy, power_y)) if w > 0
+    ]  # a still axis adds nothing
+    mean_f = sum(f * w for f, w in weighted) / total if total > 0 else float("nan")
 
     return SwayMeasures(
         rate_hz=rate,
@@ -242,3 +247,97 @@ def _power_frequency(f: np.ndarray, psd: np.ndarray, fraction: float = POWER_FRA
     if not area[-1] > 0:
         return float("nan")
     return float(f[int(np.argmax(area >= fraction * area[-1]))])
+
+
+CONFIDENCE = 0.95
+N_RESAMPLES = 2000
+SEED = 0
+"""Bootstrap settings of `compare_groups`: 95 % percentile intervals from 2000 resamplings, seeded so the
+same trials give the same intervals."""
+
+
+@dataclass(frozen=True)
+class Interval:
+    """An estimate with its 95 % interval (low and high None where a group has fewer than two trials)."""
+
+    value: float
+    low: float | None
+    high: float | None
+
+
+@dataclass(frozen=True)
+class GroupComparison:
+    """Per group: trials and each measure's mean; per ordered pair (a, b) of groups each measure's b − a."""
+
+    n: dict[str, int]
+    means: dict[str, dict[str, Interval]]
+    differences: dict[tuple[str, str], dict[str, Interval]]
+
+
+def compare_groups(groups: dict[str, dict[str, np.ndarray]]) -> GroupComparison:
+    """Means per group and differences between groups (in the given order, b − a for every a before b) of
+    each measure, with 95 % percentile-bootstrap intervals (`bootstrap_intervals`). ``groups[label][measure]``
+    holds one value per trial."""
+    labels = list(groups)
+    names = list(next(iter(groups.values()), {}))
+    data = {
+        g: np.array([groups[g][m] for m in names], dtype=np.float64) for g in labels
+    }  # (measures, trials)
+    means = {g: bootstrap_intervals(names, (data[g],), _mean) for g in labels}
+    differences = {
+        (a, b): bootstrap_intervals(names, (data[a], data[b]), _difference)
+        for i, a in enumerate(labels)
+        for b in labels[i + 1 :]
+    }
+    return GroupComparison(n={g: data[g].shape[1] for g in labels}, means=means, differences=differences)
+
+
+def quotient(numerator: dict[str, np.ndarray], denominator: dict[str, np.ndarray]) -> dict[str, Interval]:
+    """Per measure the ratio of two groups' means (e.g. the Romberg quotient, eyes closed / eyes open) with a
+    95 % percentile-bootstrap interval (`bootstrap_intervals`)."""
+    names = list(numerator)
+    top = np.array([numerator[m] for m in names], dtype=np.float64)
+    bottom = np.array([denominator[m] for m in names], dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return bootstrap_intervals(names, (top, bottom), _ratio)
+
+
+def bootstrap_intervals(
+    names: list[str], samples: tuple[np.ndarray, ...], statistic: Callable[..., np.ndarray]
+) -> dict[str, Interval]:
+    """``statistic`` of (measures, trials) ``samples`` per measure with a 95 % percentile interval from
+    ``scipy.stats.bootstrap`` (trials resampled within each sample, seeded); no interval below two trials."""
+    from scipy import stats
+
+    estimate = statistic(*samples)
+    if min(s.shape[1] for s in samples) < 2:
+        return {m: Interval(float(e), None, None) for m, e in zip(names, estimate, strict=True)}
+    ci = stats.bootstrap(
+        samples,
+        statistic,
+        axis=-1,
+        vectorized=True,
+        confidence_level=CONFIDENCE,
+        n_resamples=N_RESAMPLES,
+        method="percentile",
+        rng=np.random.default_rng(SEED),
+    ).confidence_interval
+    return {
+        m: Interval(float(e), float(lo), float(hi))
+        for m, e, lo, hi in zip(names, estimate, ci.low, ci.high, strict=True)
+    }
+
+
+def _mean(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Mean over trials."""
+    return np.mean(x, axis=axis)
+
+
+def _difference(a: np.ndarray, b: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Mean of b minus mean of a."""
+    return np.mean(b, axis=axis) - np.mean(a, axis=axis)
+
+
+def _ratio(a: np.ndarray, b: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Mean of a over mean of b."""
+    return np.mean(a, axis=axis) / np.mean(b, axis=axis)
