@@ -17,6 +17,7 @@ from service.api.responses import file_response
 from service.api.schemas.sway import Estimate, Spectra, SwayDifference, SwayGroup, SwayOut, SwaySummaryOut
 from service.files.images import sway_png
 from service.jobs.rewards import Download
+from service.problems import Unprocessable
 from service.store import recordings
 from service.store.blobs import get_array
 from service.store.demonstrators import get_demonstrator
@@ -113,13 +114,21 @@ def demonstrator_sway_summary(
     demonstrator_id: str,
     lab: LabDep,
     session: SessionDep,
-    by: Annotated[str, Query(min_length=1, max_length=100, description="The metadata label to group by.")],
+    by: Annotated[
+        str | None,
+        Query(min_length=1, max_length=100, description="The metadata label to group by (required)."),
+    ] = None,
     lowpass_hz: LowpassQuery = None,
     trim_start_s: TrimStartQuery = 0.0,
     trim_end_s: TrimEndQuery = 0.0,
 ) -> SwaySummaryOut:
     """Groups, differences and (for vision) the Romberg quotient."""
-    demonstrator = get_demonstrator(session, demonstrator_id, lab_id=lab.id)
+    demonstrator = get_demonstrator(session, demonstrator_id, lab_id=lab.id)  # another lab's: 404 first
+    if by is None:
+        raise Unprocessable(
+            "Say which metadata label to group by, e.g. ?by=vision.",
+            errors=[{"pointer": "", "parameter": "by", "message": "query parameter by is required"}],
+        )
     options = SwayOptions(lowpass_hz=lowpass_hz, trim_start_s=trim_start_s, trim_end_s=trim_end_s)
     summary = sway_summary(session, demonstrator, by=by, options=options)
     comparison = summary.comparison
