@@ -297,3 +297,20 @@ def test_every_corpus_file_cut_to_half_its_bytes_is_a_422(client: TestClient, au
         data = path.read_bytes()
         half = upload(client, auth, dem["id"], path.name, data[: len(data) // 2], protocol="standing")
         assert REASONS.search(problem(half)["message"]), path.name
+
+
+def test_a_movements_recording_has_sway_measures_too(client: TestClient, auth: dict[str, str]) -> None:
+    t = np.arange(0, 8, 0.01)
+    reach = 0.15 * np.sin(np.pi * t / 2).clip(0) ** 2
+    body = {
+        "bounds": {"x_min": -0.2, "x_max": 0.2, "y_min": -0.2, "y_max": 0.2},
+        "grid": {"width": 20, "height": 20},
+        "samples": [{"t": float(a), "x": float(b), "y": 0.0} for a, b in zip(t, reach, strict=True)],
+    }
+    dem = make_demonstrator(client, auth)
+    rec = created(client.post(f"/v1/demonstrators/{dem['id']}/recordings", json=body, headers=auth))
+    assert rec["protocol"] == "movements" and rec["segments"] == {"right": 2}
+    measured = created(sway(client, auth, rec["id"]), 200)
+    assert measured["descriptors"]["range_x"] == pytest.approx(0.15, rel=1e-3)
+    assert measured["descriptors"]["mean_velocity"] == pytest.approx(4 * 0.15 / 8, rel=0.01)
+    assert measured["descriptors"]["mean_frequency_y"] is None  # y never moves: no power to weigh
