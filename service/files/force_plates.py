@@ -99,7 +99,9 @@ def c3d_samples(data: bytes, plate: PlateIn, protocol: Protocol = "movements") -
     number = plate.platform or int(np.argmax(loads)) + 1
     p = c3d.platforms[number - 1]
     chosen = plate.platform is not None
-    if p.force.shape[-1] == 0 or not np.isfinite(p.force[2]).any():
+    normal = _normal(p)
+    plane = [axis for axis in range(3) if axis != normal]
+    if p.force.shape[-1] == 0 or not np.isfinite(p.force[normal]).any():
         raise _invalid(
             "/plate/platform" if chosen else "/file",
             f"force platform {number} has no force data (no samples in its channels)",
@@ -110,8 +112,6 @@ def c3d_samples(data: bytes, plate: PlateIn, protocol: Protocol = "movements") -
             f"POINT:UNITS {p.position_unit!r} names no length unit ({', '.join(LENGTH_UNITS)}, or a spelling "
             "of metres, centimetres or millimetres)"
         )
-    normal = _normal(p)
-    plane = [axis for axis in range(3) if axis != normal]
     unit, unit_reason = _plausible_unit(unit, float(np.ptp(p.corners[plane], axis=1).max()))
     centre = p.corners[plane].mean(axis=1, keepdims=True)
     cop = (p.center_of_pressure[plane] - centre).T * LENGTH_UNITS[unit]
@@ -125,7 +125,7 @@ def c3d_samples(data: bytes, plate: PlateIn, protocol: Protocol = "movements") -
         "position_unit_reason": unit_reason,
         "force_unit": p.force_unit.strip(),
         "platform": number,
-        "platform_choice": "given" if plate.platform is not None else "most load",
+        "platform_choice": "given" if chosen else "most load",
         "lab_axes": {"vertical": "xyz"[normal], "x": "xyz"[plane[0]], "y": "xyz"[plane[1]]},
         "platform_loads_ns": [round(load / c3d.analog_rate, 3) for load in loads],
         "events": events,

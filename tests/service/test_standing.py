@@ -118,7 +118,7 @@ def test_a_standing_json_upload_needs_no_bounds_and_cuts_nothing(
     demonstrations = created(client.get(f"/v1/recordings/{out['id']}/demonstrations", headers=auth), 200)
     assert demonstrations["trajectories"] == []
     motion = client.get(f"/v1/demonstrators/{dem['id']}/motion-summary", headers=auth)
-    assert motion.status_code == 409  # a standing trial holds no movements to read out
+    assert motion.status_code == 409 and "standing trials have none" in motion.json()["detail"]
     assert sway(client, auth_b, out["id"]).status_code == 404
     movements = client.post(url, json={"samples": samples, "grid": {"width": 10, "height": 10}}, headers=auth)
     assert problem(movements)["pointer"] == "/bounds"
