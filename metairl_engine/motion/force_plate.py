@@ -28,6 +28,14 @@ PATIENT_VECTORS: dict[str, tuple[int, int]] = {
 """Each direction a plate axis may point to, in the recording's own frame (+x right, +y forward)."""
 LENGTH_UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 """Metres per unit, for the position (C3D) or moment (CSV) lengths a file may use; recordings store metres."""
+UNIT_NAMES: dict[str, tuple[str, ...]] = {
+    "m": ("m", "meter", "metre", "meters", "metres"),
+    "cm": ("cm", "centimeter", "centimetre", "centimeters", "centimetres"),
+    "mm": ("mm", "millimeter", "millimetre", "millimeters", "millimetres"),
+}
+"""Spellings of each `LENGTH_UNITS` key that `length_unit` reads."""
+NEVER_LOADED = "never loaded"
+"""How the issue of a plate with no loaded sample begins."""
 MIN_FZ = 20.0
 """Default least |F_z| (N) of a loaded sample: the usual contact threshold of force-plate software."""
 
@@ -84,7 +92,7 @@ def loaded_span(fz: np.ndarray, min_fz: float = MIN_FZ) -> slice:
             [
                 Issue(
                     "/samples",
-                    f"no sample has |Fz| ≥ {min_fz:g} N (the largest is {size.max(initial=0.0):.3g} N): the plate "
+                    f"{NEVER_LOADED}: no sample has |Fz| ≥ {min_fz:g} N (the largest is {size.max(initial=0.0):.3g} N): the plate "
                     "was never loaded, or the force channels are not the plate's",
                 )
             ]
@@ -104,3 +112,29 @@ def loaded_span(fz: np.ndarray, min_fz: float = MIN_FZ) -> slice:
             ]
         )
     return span
+
+
+def length_unit(name: str) -> str | None:
+    """The `LENGTH_UNITS` key a file's unit string means, read leniently: any case, blanks and NUL padding
+    ignored, a spelling of `UNIT_NAMES` or a cut-off one of at least three letters (``mete`` is ``m``, as C3D
+    writers truncate to the parameter's width); None if it names no length unit or more than one."""
+    text = name.replace("\0", "").strip().lower()
+    if not text:
+        return None
+    exact = [unit for unit, spellings in UNIT_NAMES.items() if text in spellings]
+    if exact:
+        return exact[0]
+    cut = {
+        unit
+        for unit, spellings in UNIT_NAMES.items()
+        for s in spellings
+        if len(text) >= 3 and s.startswith(text)
+    }
+    return cut.pop() if len(cut) == 1 else None
+
+
+def loaded_stretches(fz: np.ndarray, min_fz: float = MIN_FZ) -> list[slice]:
+    """The maximal runs of consecutive samples with |F_z| ≥ `min_fz`, in time order (empty if none is loaded)."""
+    loaded = np.abs(np.nan_to_num(np.asarray(fz, dtype=np.float64))) >= min_fz
+    edges = np.flatnonzero(np.diff(np.r_[0, loaded.astype(np.int8), 0]))
+    return [slice(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]

@@ -27,6 +27,7 @@ from service.api.routes import (
     motion,
     recordings,
     rewards,
+    sway,
     tasks,
     ui,
     webhooks,
@@ -113,6 +114,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         rewards,
         comparisons,
         motion,
+        sway,
         webhooks,
     ):
         app.include_router(module.router, prefix="/v1")

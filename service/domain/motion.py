@@ -232,5 +232,7 @@ class RecordingDemonstrationsOut(BaseModel):
     )
 
     recording_id: str
-    mdp_id: str
+    mdp_id: str | None = Field(
+        description="The velocity grid; null for a `standing` recording (none stored)."
+    )
     trajectories: list[CutTrajectory]

@@ -6,9 +6,9 @@ request carries exactly the knobs the pipeline has, with the engine's defaults.
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, StringConstraints, field_validator
 from pydantic.json_schema import JsonDict, JsonValue
 
 from metairl_engine.motion.force_plate import MIN_FZ, PlateAxes
@@ -64,6 +64,11 @@ class DiscretiseIn(BaseModel):
     )
 
 
+Protocol = Literal["movements", "standing"]
+LabelValue = Annotated[str, StringConstraints(max_length=100)] | float | bool
+MAX_LABELS = 20
+
+
 class RecordingOptions(BaseModel):
     """Everything about a recording except its samples (a CSV upload sends these as form fields)."""
 
@@ -72,7 +77,29 @@ class RecordingOptions(BaseModel):
         default=None, description="A velocity-grid MDP of your lab (8 velocity channels); or give `grid`."
     )
     grid: GridIn | None = Field(default=None, description="Instead of `mdp_id`: the velocity grid to use.")
-    bounds: Bounds = Field(description="The force plate's rectangle, in the samples' units.")
+    protocol: Protocol = Field(
+        default="movements",
+        description="`movements`: instructed out-and-back movements cut into per-direction demonstrations "
+        "(needs `mdp_id` or `grid`, and `bounds`); `standing`: a quiet-standing trial stored whole, no "
+        "segmentation and no demonstrations, for its sway measures (`GET /v1/recordings/{id}/sway`).",
+    )
+    metadata: dict[str, LabelValue] | None = Field(
+        default=None,
+        max_length=MAX_LABELS,
+        description='The lab\'s labels of the trial, e.g. `{"vision": "closed", "surface": "foam"}`: the '
+        "groups of `GET /v1/demonstrators/{id}/sway-summary?by=vision`.",
+    )
+    units: str | None = Field(
+        default=None,
+        max_length=16,
+        description="COP samples only: the length unit of x and y (e.g. `cm`), reported with the sway measures; "
+        "a force-plate file's COP is in metres.",
+    )
+    bounds: Bounds | None = Field(
+        default=None,
+        description="The force plate's rectangle, in the samples' units; optional for `standing` (the samples' "
+        "own extent).",
+    )
     discretise: DiscretiseIn = DiscretiseIn()
     segment: SegmentSettings = Field(
         default=SegmentSettings(), description="How the session splits into out-and-back movements."
@@ -92,10 +119,21 @@ class PlateIn(BaseModel):
     min_fz: float = Field(
         default=MIN_FZ,
         gt=0,
-        description="Least |Fz| (N) of a loaded sample; unloaded samples at the start and end are cut away, "
-        "between loaded ones they are a 422.",
+        description="Least |Fz| (N) of a loaded sample; unloaded samples at the start and end are cut away; "
+        "between loaded ones they are a 422 for `movements`, while `standing` keeps the longest loaded stretch "
+        "and reports the others in `settings.plate.unloaded_stretches`.",
     )
-    platform: int = Field(default=1, ge=1, description="C3D only: which force platform, from 1.")
+    platform: int | None = Field(
+        default=None,
+        ge=1,
+        description="C3D only: which force platform, from 1; absent, the one carrying the most load (the "
+        "choice is in `settings.plate.platform` and `settings.plate.platform_choice`).",
+    )
+    events: Literal["instructions", "ignore"] | None = Field(
+        default=None,
+        description="C3D only: `instructions` reads the file's events as instructions (each names a direction, "
+        "or rest); `ignore` leaves them out. Default: `instructions` for `movements`, `ignore` for `standing`.",
+    )
     rate_hz: float | None = Field(
         default=None, gt=0, description="CSV only, without a `t` column: samples per second."
     )
@@ -157,6 +195,8 @@ class RecordingOut(Resource):
                     "id": "rec_Yx3pQ9sLm2Kd7vN0bT5wCe",
                     "created_at": "2026-01-05T10:05:00Z",
                     "demonstrator_id": "dem_Qd8s0Xz4pN2uLm7vB1cE3w",
+                    "protocol": "movements",
+                    "metadata": {"stimulation": "off"},
                     "mdp_id": "mdp_3q0f9b2yJm6nD1Kx8cT4wA",
                     "mdp_created": False,
                     "name": "session 1, unstimulated",
@@ -187,7 +227,11 @@ class RecordingOut(Resource):
     )
 
     demonstrator_id: str
-    mdp_id: str
+    protocol: Protocol = Field(
+        description="`movements` (cut into demonstrations) or `standing` (kept whole)."
+    )
+    metadata: dict[str, LabelValue] | None = Field(description="The lab's labels of the trial.")
+    mdp_id: str | None = Field(description="The velocity grid of the movements; null for `standing`.")
     mdp_created: bool = Field(description="True if the upload created the velocity grid (`grid` given).")
     name: str | None
     format: UploadFormat = Field(
@@ -215,6 +259,8 @@ class RecordingOut(Resource):
                 "id": row.id,
                 "created_at": row.created_at,
                 "demonstrator_id": row.demonstrator_id,
+                "protocol": row.protocol,
+                "metadata": row.meta,
                 "mdp_id": row.mdp_id,
                 "name": row.name,
                 "format": row.format,

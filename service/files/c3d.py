@@ -10,6 +10,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import struct
 import subprocess
 import sys
 import tempfile
@@ -46,6 +47,8 @@ class C3dFile:
 
     platforms: list[Platform]
     analog_rate: float
+    analog_rate_source: str
+    """Where the rate came from: the ``header`` or, where the header's is 0, ``ANALOG:RATE``."""
     start_s: float
     """Time of the first analog sample: the first frame's, counted from frame 1 as the events' times are."""
     events: list[tuple[str, float]]
@@ -57,6 +60,24 @@ def is_c3d(data: bytes) -> bool:
     return len(data) >= 2 and 0 < data[0] < 0x20 and data[1] == MAGIC
 
 
+def declared_size(data: bytes) -> int | None:
+    """Bytes a C3D needs for the frames its header declares (header words 2–5 and 9, the scale factor's sign
+    for 2- or 4-byte samples, byte order from the parameter block's processor type); None where the header
+    cannot say (no parameter block, no samples declared)."""
+    block = (data[0] - 1) * 512
+    if len(data) < max(block + 4, 18):
+        return None
+    processor = data[block + 3] - 83  # 1 Intel, 2 DEC, 3 MIPS (big-endian)
+    order = ">" if processor == 3 else "<"
+    points, analogs, first, last = struct.unpack(order + "4H", data[2:10])
+    start = struct.unpack(order + "H", data[16:18])[0]
+    if points + analogs == 0 or start == 0 or last < first:
+        return None
+    sign_byte = {2: 13, 3: 12}.get(processor, 15)  # where the float's sign bit lies: DEC, big-endian, IEEE LE
+    sample = 4 if data[sign_byte] & 0x80 else 2
+    return (start - 1) * 512 + (last - first + 1) * (4 * points + analogs) * sample
+
+
 def file_problem(message: str) -> Unprocessable:
     """A 422 about the uploaded file as a whole."""
     return Unprocessable(f"The file is invalid: {message}", errors=[{"pointer": "/file", "message": message}])
@@ -66,6 +87,11 @@ def read_c3d(data: bytes) -> C3dFile:
     """Read a C3D upload's force platforms in a child process; 422 if it is not a C3D ezc3d can read."""
     if not is_c3d(data):
         raise file_problem(f"is not a C3D file (a C3D's second byte is 0x{MAGIC:02X})")
+    needed = declared_size(data)
+    if needed is not None and len(data) < needed:
+        raise file_problem(
+            f"is truncated: its header declares frames that need {needed} bytes, the file has {len(data)}"
+        )
     with tempfile.TemporaryDirectory(prefix="metairl-c3d-") as folder:
         path = Path(folder) / "upload.c3d"
         path.write_bytes(data)
@@ -107,6 +133,7 @@ def _parsed(output: bytes) -> C3dFile:
     return C3dFile(
         platforms=platforms,
         analog_rate=meta["analog_rate"],
+        analog_rate_source=meta["analog_rate_source"],
         start_s=meta["first_frame"] / meta["point_rate"] if meta["point_rate"] > 0 else 0.0,
         events=[(e["label"], e["time"]) for e in meta["events"]],
     )

@@ -45,6 +45,14 @@ def _events(parameters: Any) -> list[dict[str, Any]]:
     ]
 
 
+def _parameter_rate(parameters: Any) -> float:
+    """ANALOG:RATE, where a writer that leaves the header's analog rate 0 (Kistler's) keeps it; 0 if absent."""
+    value = np.asarray(
+        parameters.get("ANALOG", {}).get("RATE", {}).get("value", []), dtype=np.float64
+    ).ravel()
+    return float(value[0]) if value.size and np.isfinite(value[0]) else 0.0
+
+
 def read(path: str) -> bytes:
     """The platforms and metadata of the C3D at `path` as ``.npz`` bytes; `ReadError` if ezc3d rejects it."""
     import ezc3d
@@ -59,8 +67,12 @@ def read(path: str) -> bytes:
             raise ReadError("file", str(plain) or type(plain).__name__) from plain
         raise ReadError("platform", str(exc) or type(exc).__name__) from exc
     header, platforms = c3d["header"], c3d["data"]["platform"]
+    rate, rate_source = float(header["analogs"]["frame_rate"]), "header"
+    if rate <= 0:
+        rate, rate_source = _parameter_rate(c3d["parameters"]), "ANALOG:RATE"
     meta = {
-        "analog_rate": float(header["analogs"]["frame_rate"]),
+        "analog_rate": rate,
+        "analog_rate_source": rate_source,
         "point_rate": float(header["points"]["frame_rate"]),
         "first_frame": int(header["points"]["first_frame"]),
         "events": _events(c3d["parameters"]),

@@ -15,11 +15,18 @@ import numpy as np
 
 from metairl_engine import InvalidInput
 from metairl_engine.grids import DIRECTION_NAMES
-from metairl_engine.motion.force_plate import LENGTH_UNITS, loaded_span, wrench_cop
+from metairl_engine.motion.force_plate import (
+    LENGTH_UNITS,
+    NEVER_LOADED,
+    length_unit,
+    loaded_span,
+    loaded_stretches,
+    wrench_cop,
+)
 from metairl_engine.motion.recording import NO_INSTRUCTION, canonical_instruction
 from service.domain.common import UploadFormat
-from service.domain.recordings import PlateIn
-from service.files.c3d import C3dFile, file_problem, is_c3d, read_c3d
+from service.domain.recordings import PlateIn, Protocol
+from service.files.c3d import C3dFile, Platform, file_problem, is_c3d, read_c3d
 from service.files.recording_samples import Samples, csv_samples, located, read_columns
 from service.problems import Unprocessable
 
@@ -27,7 +34,9 @@ FORCES = ("fx", "fy", "fz")
 MOMENTS = ("mx", "my", "mz")
 CSV_ONLY = ("rate_hz", "moment_unit", "origin_depth")
 """`PlateIn` fields that only a CSV of forces and moments uses."""
-C3D_ONLY = ("platform",)
+C3D_ONLY = ("platform", "events")
+MAX_REPORTED = 20
+"""Most dropped loaded stretches listed in a standing recording's settings (all are counted)."""
 """`PlateIn` fields that only a C3D uses."""
 
 
@@ -38,12 +47,15 @@ def _invalid(pointer: str, message: str) -> Unprocessable:
     )
 
 
-def file_samples(filename: str | None, data: bytes, plate: PlateIn | None) -> Samples:
-    """The COP samples of an uploaded file, whichever of the three kinds it is; `plate` only for a plate file."""
+def file_samples(
+    filename: str | None, data: bytes, plate: PlateIn | None, protocol: Protocol = "movements"
+) -> Samples:
+    """The COP samples of an uploaded file, whichever of the three kinds it is; `plate` only for a plate file.
+    A ``standing`` upload ignores C3D events by default and keeps the longest loaded stretch of a plate file."""
     if is_c3d(data) or (filename or "").lower().endswith(".c3d"):
-        return c3d_samples(data, plate or PlateIn())
+        return c3d_samples(data, plate or PlateIn(), protocol)
     if _header(data) & {*FORCES, *MOMENTS}:
-        return forces_samples(data, plate or PlateIn())
+        return forces_samples(data, plate or PlateIn(), protocol)
     if plate is not None:
         raise _invalid(
             "/plate",
@@ -66,37 +78,100 @@ def _only_for(plate: PlateIn, fields: Sequence[str], kind: str) -> None:
             raise _invalid(f"/plate/{name}", f"applies to {kind} only")
 
 
-def c3d_samples(data: bytes, plate: PlateIn) -> Samples:
-    """The COP of the C3D's force platform `plate.platform`, about the plate's centre, in metres, at the
-    analog rate; instructions from the file's events."""
+def c3d_samples(data: bytes, plate: PlateIn, protocol: Protocol = "movements") -> Samples:
+    """The COP of one of the C3D's force platforms (`plate.platform`, else the one carrying the most load),
+    about the plate's centre, in metres, at the analog rate; instructions from the file's events unless
+    `plate.events` (by default for ``standing``) says to ignore them. 422 naming the reason and the field."""
     _only_for(plate, CSV_ONLY, "CSV files of forces and moments")
     c3d = read_c3d(data)
     if not c3d.platforms:
         raise file_problem("the C3D has no force platform (FORCE_PLATFORM:USED is 0 or missing)")
-    if plate.platform > len(c3d.platforms):
+    if plate.platform is not None and plate.platform > len(c3d.platforms):
         raise _invalid(
             "/plate/platform", f"the C3D has {len(c3d.platforms)} force platforms; got {plate.platform}"
         )
     if c3d.analog_rate <= 0:
-        raise file_problem(f"the C3D's analog rate is {c3d.analog_rate:g}; it must be positive")
-    p = c3d.platforms[plate.platform - 1]
-    unit = p.position_unit.strip()
-    if unit not in LENGTH_UNITS:
-        raise file_problem(f"POINT:UNITS {p.position_unit!r} is not one of {', '.join(LENGTH_UNITS)}")
-    centre = p.corners[:2].mean(axis=1, keepdims=True)
-    cop = (p.center_of_pressure[:2] - centre).T * LENGTH_UNITS[unit]
+        raise file_problem(
+            "the C3D has no force data: its analog rate is 0 in the header and in ANALOG:RATE (no analog "
+            "channels were recorded)"
+        )
+    loads = [float(np.abs(np.nan_to_num(p.force[_normal(p)])).sum()) for p in c3d.platforms]
+    number = plate.platform or int(np.argmax(loads)) + 1
+    p = c3d.platforms[number - 1]
+    chosen = plate.platform is not None
+    normal = _normal(p)
+    plane = [axis for axis in range(3) if axis != normal]
+    if p.force.shape[-1] == 0 or not np.isfinite(p.force[normal]).any():
+        raise _invalid(
+            "/plate/platform" if chosen else "/file",
+            f"force platform {number} has no force data (no samples in its channels)",
+        )
+    unit = length_unit(p.position_unit)
+    if unit is None:
+        raise file_problem(
+            f"POINT:UNITS {p.position_unit!r} names no length unit ({', '.join(LENGTH_UNITS)}, or a spelling "
+            "of metres, centimetres or millimetres)"
+        )
+    unit, unit_reason = _plausible_unit(unit, float(np.ptp(p.corners[plane], axis=1).max()))
+    centre = p.corners[plane].mean(axis=1, keepdims=True)
+    cop = (p.center_of_pressure[plane] - centre).T * LENGTH_UNITS[unit]
     t = c3d.start_s + np.arange(cop.shape[0]) / c3d.analog_rate
-    read = {"rate_hz": c3d.analog_rate, "position_unit": unit, "force_unit": p.force_unit.strip()}
-    return _plate_samples(
-        t,
-        cop,
-        fz=p.force[2],
-        instruction=event_instructions(c3d, t),
-        plate=plate,
-        fmt="c3d",
-        lines=None,
-        read=read | plate.model_dump(exclude=set(CSV_ONLY)),
-    )
+    events = plate.events or ("ignore" if protocol == "standing" else "instructions")
+    read = {
+        "rate_hz": c3d.analog_rate,
+        "rate_source": c3d.analog_rate_source,
+        "position_unit": p.position_unit.replace("\0", "").strip(),
+        "position_unit_read_as": unit,
+        "position_unit_reason": unit_reason,
+        "force_unit": p.force_unit.strip(),
+        "platform": number,
+        "platform_choice": "given" if chosen else "most load",
+        "lab_axes": {"vertical": "xyz"[normal], "x": "xyz"[plane[0]], "y": "xyz"[plane[1]]},
+        "platform_loads_ns": [round(load / c3d.analog_rate, 3) for load in loads],
+        "events": events,
+        "n_events": len(c3d.events),
+    }
+    try:
+        return _plate_samples(
+            t,
+            cop,
+            fz=p.force[normal],
+            instruction=event_instructions(c3d, t) if events == "instructions" else None,
+            plate=plate,
+            protocol=protocol,
+            fmt="c3d",
+            lines=None,
+            read=plate.model_dump(exclude={*CSV_ONLY, "platform", "events"}) | read,
+        )
+    except Unprocessable as exc:
+        if chosen and exc.errors and exc.errors[0]["message"].startswith(NEVER_LOADED):
+            raise _invalid(
+                "/plate/platform", f"force platform {number} was {exc.errors[0]['message']}"
+            ) from exc
+        raise
+
+
+PLATE_SIDE_M = (0.1, 3.0)
+"""Range of a real force plate's longer side, metres: a unit that makes the corners say otherwise is wrong."""
+
+
+def _plausible_unit(unit: str, side: float) -> tuple[str, str]:
+    """The file's length unit, or, where its plate corners (longer side `side` in that unit) would make a plate
+    no real one is (`PLATE_SIDE_M`), the one unit that gives a real size (a file writing ``m`` with corners in
+    millimetres); and why."""
+    low, high = PLATE_SIDE_M
+    if low <= side * LENGTH_UNITS[unit] <= high:
+        return unit, "the file's unit"
+    fits = [u for u, metres in LENGTH_UNITS.items() if low <= side * metres <= high]
+    if len(fits) != 1:
+        return unit, "the file's unit (its corners fit no unit)"
+    return fits[0], f"the corners' size: {side:g} {unit} is no force plate, {side:g} {fits[0]} is"
+
+
+def _normal(platform: Platform) -> int:
+    """The lab axis normal to the plate (0, 1, 2 for x, y, z): the one along which its corners vary least
+    (z in a z-up lab, y in a y-up one such as Kistler's)."""
+    return int(np.argmin(np.ptp(platform.corners, axis=1)))
 
 
 def event_instructions(c3d: C3dFile, t: np.ndarray) -> list[str | None] | None:
@@ -113,14 +188,15 @@ def event_instructions(c3d: C3dFile, t: np.ndarray) -> list[str | None] | None:
             raise _invalid(
                 f"/events/{k}/label",
                 f"unknown instruction {label!r}; an event names one of {', '.join(DIRECTION_NAMES)} (words "
-                "joined by spaces, _ or -, any case), or rest or none to end the instruction",
+                "joined by spaces, _ or -, any case), or rest or none to end the instruction; or send "
+                'plate.events = "ignore" to leave the events out',
             )
     ordered = sorted(c3d.events, key=lambda event: event[1])
     latest = np.searchsorted([time for _, time in ordered], t, side="right") - 1
     return [ordered[k][0] if k >= 0 else None for k in latest]
 
 
-def forces_samples(data: bytes, plate: PlateIn) -> Samples:
+def forces_samples(data: bytes, plate: PlateIn, protocol: Protocol = "movements") -> Samples:
     """The COP of a CSV with columns Fx, Fy, Fz (N), Mx, My, Mz (`plate.moment_unit`) and ``t`` (s) or
     `plate.rate_hz`, about the plate's measurement origin, in metres; 422 naming a missing column or bad cell."""
     _only_for(plate, C3D_ONLY, "C3D files")
@@ -146,6 +222,7 @@ def forces_samples(data: bytes, plate: PlateIn) -> Samples:
         fz=force[:, 2],
         instruction=columns.instruction,
         plate=plate,
+        protocol=protocol,
         fmt="forces",
         lines=columns.lines,
         read=plate.model_dump(exclude=set(C3D_ONLY)),
@@ -159,18 +236,33 @@ def _plate_samples(
     fz: np.ndarray,
     instruction: list[str | None] | None,
     plate: PlateIn,
+    protocol: Protocol,
     fmt: UploadFormat,
     lines: list[int] | None,
     read: dict[str, Any],
 ) -> Samples:
-    """`Samples` of the loaded span of (N, 2) COP in file axes (metres), turned into the patient's axes."""
+    """`Samples` of the loaded span of (N, 2) COP in file axes (metres), turned into the patient's axes: for
+    ``movements`` from the first to the last loaded sample (an unloaded one between is a 422), for
+    ``standing`` the longest loaded stretch, the others reported in ``unloaded_stretches``."""
     try:
-        span = loaded_span(fz, plate.min_fz)
+        span = (
+            loaded_span(fz, plate.min_fz) if protocol == "movements" else _longest_stretch(fz, plate.min_fz)
+        )
     except InvalidInput as exc:
         raise located(exc, lines) from exc
     xy = plate.axes.to_patient(cop[span])
+    t = np.asarray(t, dtype=np.float64)
+    if protocol == "standing":
+        others = [s for s in loaded_stretches(fz, plate.min_fz) if s != span]
+        read = read | {
+            "loaded_stretches_dropped": [
+                {"start_s": float(t[s.start]), "stop_s": float(t[s.stop - 1]), "n_samples": s.stop - s.start}
+                for s in others[:MAX_REPORTED]
+            ],
+            "n_loaded_stretches": len(others) + 1,
+        }
     return Samples(
-        t=np.asarray(t, dtype=np.float64)[span].tolist(),
+        t=t[span].tolist(),
         x=xy[:, 0].tolist(),
         y=xy[:, 1].tolist(),
         instruction=None if instruction is None else instruction[span],
@@ -178,3 +270,11 @@ def _plate_samples(
         lines=None if lines is None else lines[span],
         plate=read | {"unloaded_samples": len(fz) - (span.stop - span.start)},
     )
+
+
+def _longest_stretch(fz: np.ndarray, min_fz: float) -> slice:
+    """The longest run of loaded samples (the first of equals); `InvalidInput` as `loaded_span`'s if none is."""
+    stretches = loaded_stretches(fz, min_fz)
+    if not stretches:
+        loaded_span(fz, min_fz)  # raises the never-loaded issue
+    return max(stretches, key=lambda s: s.stop - s.start)

@@ -1,4 +1,4 @@
-"""Reward maps and correlation matrices as PNG images, for the ``?format=png`` downloads.
+"""Reward maps, correlation matrices and COP paths as PNG images, for the ``?format=png`` downloads.
 
 matplotlib (Agg) is imported inside the functions, so importing this module costs the API process nothing
 until a picture is asked for; torch is never imported. Figures are plain `matplotlib.figure.Figure`
@@ -262,6 +262,36 @@ def _polyline(x: np.ndarray, y: np.ndarray, *, keep: np.ndarray) -> tuple[np.nda
     points[:, 0, 0], points[:, 0, 1] = x, y
     chosen = points.reshape(2 * n, 2)[np.column_stack([used, used & ~segment]).ravel()][:-1]
     return chosen[:, 0], chosen[:, 1]
+
+
+SWAY_INCHES = (5.0, 5.0)
+"""Size of `sway_png`'s figure: 500 × 500 px at dpi 100."""
+
+
+def sway_png(
+    x: np.ndarray,
+    y: np.ndarray,
+    outline: np.ndarray,
+    *,
+    units: str | None,
+    title: str,
+    dpi: int = 100,
+) -> bytes:
+    """A COP path (x right, y forward) with its 95 % prediction ellipse ``outline`` (K, 2), equal axes."""
+    from matplotlib.figure import Figure
+
+    _check_dpi(dpi)
+    fig = Figure(figsize=SWAY_INCHES, dpi=dpi)
+    ax = fig.add_axes((0.17, 0.12, 0.78, 0.78))
+    ax.plot(x, y, color="#1f77b4", linewidth=0.6, label="COP path")
+    ax.plot(outline[:, 0], outline[:, 1], color="#d62728", linewidth=1.5, label="95 % prediction ellipse")
+    ax.set_aspect("equal", adjustable="datalim")
+    unit = f" ({units})" if units else ""
+    ax.set_xlabel(f"x, right{unit}")
+    ax.set_ylabel(f"y, forward{unit}")
+    ax.set_title(title, fontsize=10)
+    ax.legend(loc="upper right", fontsize=8)
+    return _png(fig)
 
 
 def _png(fig: Figure) -> bytes:

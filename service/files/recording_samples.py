@@ -20,7 +20,7 @@ from service.problems import Unprocessable, validation_errors
 
 REQUIRED_COLUMNS = ("t", "x", "y")
 INSTRUCTION_COLUMN = "instruction"
-OBJECT_FIELDS = ("bounds", "grid", "discretise", "segment", "plate")
+OBJECT_FIELDS = ("bounds", "grid", "discretise", "segment", "plate", "metadata")
 """Form fields of a file upload that hold a JSON object (the others are plain strings)."""
 SAMPLE_POINTER = re.compile(r"^/samples/(\d+)(/|$)")
 
@@ -119,7 +119,7 @@ def csv_samples(data: bytes) -> Samples:
 
 def form_options(form: FormData) -> FileOptions:
     """The options of a file upload from its form fields (``bounds``, ``grid``, ``discretise``, ``segment``,
-    ``plate`` as JSON objects; ``mdp_id`` and ``name`` as text); 422 with pointers as for a JSON body."""
+    ``plate``, ``metadata`` as JSON objects; ``mdp_id``, ``name``, ``protocol``, ``units`` as text); 422 with pointers as for a JSON body."""
     raw: dict[str, Any] = {}
     for key, value in form.items():
         if not isinstance(value, str):

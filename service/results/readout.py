@@ -31,13 +31,14 @@ from service.store.recordings import demonstrator_recordings, load_recording
 
 
 def demonstrator_movements(session: Session, demonstrator: Demonstrator) -> tuple[list[Movement], int]:
-    """The out-and-back movements of every recording of the demonstrator (each cut with the segment settings
-    of its upload), and the number of recordings; 409 with a reason when it has none."""
+    """The out-and-back movements of every `movements` recording of the demonstrator (each cut with the
+    segment settings of its upload), and the number of those recordings; 409 with a reason when it has none."""
     rows = demonstrator_recordings(session, demonstrator)
     if not rows:
         raise Conflict(
-            f"Demonstrator {demonstrator.id} has no recordings, so there is no motion to read out; upload "
-            f"one with POST /v1/demonstrators/{demonstrator.id}/recordings."
+            f"Demonstrator {demonstrator.id} has no recordings of instructed movements (standing trials have "
+            f"none), so there is no motion to read out; upload one with POST "
+            f"/v1/demonstrators/{demonstrator.id}/recordings."
         )
     moves = []
     for row in rows:

@@ -14,6 +14,7 @@ samples are parsed by `service.files.recording_samples`. numpy only: the API pro
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 from sqlalchemy import select, update
@@ -30,6 +31,7 @@ from metairl_engine.motion.recording import (
     SegmentSettings,
     demonstrations,
 )
+from metairl_engine.motion.sway import MIN_SWAY_SAMPLES
 from service.domain.mdps import GridMdpIn
 from service.domain.recordings import RecordingOptions, RecordingTask
 from service.files.recording_samples import Samples
@@ -168,9 +170,16 @@ def lock_demonstrator(session: Session, demonstrator_id: str) -> None:
 def add_recording(
     session: Session, demonstrator: Demonstrator, options: RecordingOptions, samples: Samples
 ) -> RecordingRow:
-    """Validate and cut the recording, then add grid, tasks, demonstrations and the recording row.
+    """Validate and cut the recording, then add grid, tasks, demonstrations and the recording row; a
+    ``standing`` recording is validated and stored whole (`add_standing`).
 
     The demonstrator's row is locked first (`lock_demonstrator`) until the caller's transaction ends."""
+    if options.protocol == "standing":
+        return add_standing(session, demonstrator, options, samples)
+    if options.bounds is None:
+        raise _invalid(
+            "/bounds", 'is required for protocol "movements": the plate\'s x_min, x_max, y_min, y_max'
+        )
     lab_id = demonstrator.lab_id
     target = _target(session, options, lab_id=lab_id)
     discretise = DiscretiseSettings(
@@ -207,6 +216,8 @@ def add_recording(
         lab_id=lab_id,
         demonstrator_id=demonstrator.id,
         mdp_id=mdp_id,
+        protocol="movements",
+        meta=options.metadata,
         name=options.name,
         format=samples.format,
         n_samples=len(rec.t),
@@ -220,7 +231,7 @@ def add_recording(
             "discretise": asdict(discretise),
             "segment": asdict(options.segment),
         }
-        | ({} if samples.plate is None else {"plate": samples.plate}),
+        | _units_and_plate(options, samples),
         summary={
             "mdp_created": target.row is None,
             "segments": {t.label: t.n_trajectories for t in tasks},
@@ -232,6 +243,91 @@ def add_recording(
     session.add(row)
     session.flush()
     return row
+
+
+MOVEMENTS_ONLY = ("mdp_id", "grid", "discretise", "segment")
+"""Upload options that only the ``movements`` protocol uses."""
+
+
+def add_standing(
+    session: Session, demonstrator: Demonstrator, options: RecordingOptions, samples: Samples
+) -> RecordingRow:
+    """Validate a quiet-standing recording (enough samples for the sway measures, inside `bounds` when given,
+    else the samples' own extent) and store it whole: no MDP, no segments, no tasks."""
+    for name in MOVEMENTS_ONLY:
+        if name in options.model_fields_set:
+            raise _invalid(
+                f"/{name}", 'applies to protocol "movements" only; a standing recording is not cut'
+            )
+    rec = standing_recording(options, samples)
+    row = RecordingRow(
+        id=new_id("rec"),
+        lab_id=demonstrator.lab_id,
+        demonstrator_id=demonstrator.id,
+        mdp_id=None,
+        protocol="standing",
+        meta=options.metadata,
+        name=options.name,
+        format=samples.format,
+        n_samples=len(rec.t),
+        duration=float(rec.t[-1] - rec.t[0]),
+        samples_blob_id=put_array(
+            session, np.stack([rec.t, rec.x, rec.y], axis=1), lab_id=demonstrator.lab_id
+        ),
+        instructions_blob_id=None,
+        settings={"bounds": asdict(rec.bounds), "bounds_from": "upload" if options.bounds else "samples"}
+        | _units_and_plate(options, samples),
+        summary={
+            "mdp_created": False,
+            "segments": {},
+            "dropped_segments": 0,
+            "dropped_samples": 0,
+            "tasks": [],
+        },
+    )
+    session.add(row)
+    session.flush()
+    return row
+
+
+def standing_recording(options: RecordingOptions, samples: Samples) -> Recording:
+    """The samples of a standing upload as a `Recording` in `options.bounds` (else their own extent), with
+    enough samples for the sway measures and a COP that moves; 422 naming the sample or the reason."""
+    try:
+        bounds = options.bounds or _extent(samples)
+        rec = Recording.build(
+            t=samples.t, x=samples.x, y=samples.y, bounds=bounds, min_samples=MIN_SWAY_SAMPLES
+        )
+    except InvalidInput as exc:
+        raise samples.located(exc) from exc
+    if np.ptp(rec.x) == 0 and np.ptp(rec.y) == 0:
+        hint = " (the plate's moments are zero: a C3D's FORCE_PLATFORM:ORIGIN may lack the sensor offsets)"
+        raise _invalid(
+            "/samples",
+            f"the centre of pressure never moves over the {len(rec.t)} samples, so there is no sway to measure"
+            + (hint if samples.plate is not None else ""),
+        )
+    return rec
+
+
+def _extent(samples: Samples) -> Bounds:
+    """The samples' own rectangle (a flat axis widened by a hair so it is not empty); NaN left to `build`."""
+    out = []
+    for values in (samples.x, samples.y):
+        finite = np.asarray(values, dtype=np.float64)
+        finite = finite[np.isfinite(finite)]
+        lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
+        pad = 0.0 if hi > lo else max(abs(lo), 1.0) * 1e-9
+        out += [lo - pad, hi + pad]
+    return Bounds(*out)
+
+
+def _units_and_plate(options: RecordingOptions, samples: Samples) -> dict[str, Any]:
+    """The length unit of the stored COP (metres for a plate file, else the upload's `units`, if given) and
+    how a plate file was read."""
+    if samples.plate is not None:
+        return {"units": "m", "plate": samples.plate}
+    return {"units": options.units}
 
 
 def _instruction_codes(instruction: np.ndarray) -> np.ndarray:
@@ -255,11 +351,17 @@ def get_recording(session: Session, recording_id: str, *, lab_id: str) -> Record
     return get_owned(session, RecordingRow, recording_id, lab_id=lab_id, what="recording")
 
 
-def demonstrator_recordings(session: Session, demonstrator: Demonstrator) -> list[RecordingRow]:
-    """Every recording of a demonstrator, oldest first."""
+def demonstrator_recordings(
+    session: Session, demonstrator: Demonstrator, protocol: str = "movements"
+) -> list[RecordingRow]:
+    """Every recording of a demonstrator under `protocol`, oldest first."""
     query = (
         select(RecordingRow)
-        .where(RecordingRow.demonstrator_id == demonstrator.id, RecordingRow.lab_id == demonstrator.lab_id)
+        .where(
+            RecordingRow.demonstrator_id == demonstrator.id,
+            RecordingRow.lab_id == demonstrator.lab_id,
+            RecordingRow.protocol == protocol,
+        )
         .order_by(RecordingRow.created_at, RecordingRow.id)
     )
     return list(session.execute(query).scalars())

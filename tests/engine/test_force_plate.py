@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 
 from metairl_engine import InvalidInput
-from metairl_engine.motion.force_plate import PlateAxes, loaded_span, wrench_cop
+from metairl_engine.motion.force_plate import (
+    PlateAxes,
+    length_unit,
+    loaded_span,
+    loaded_stretches,
+    wrench_cop,
+)
 
 
 @pytest.mark.parametrize("z_up", [True, False])
@@ -56,3 +62,30 @@ def test_an_unloaded_sample_between_loaded_ones_is_named() -> None:
 def test_a_plate_never_loaded_is_an_issue_giving_the_largest_force() -> None:
     with pytest.raises(InvalidInput, match=r"no sample has \|Fz\| ≥ 20 N \(the largest is 3 N\)"):
         loaded_span(np.array([0.0, -3.0, 1.0]), 20.0)
+
+
+@pytest.mark.parametrize(
+    ("written", "unit"),
+    [
+        ("m", "m"),
+        ("mete", "m"),
+        ("METRES", "m"),
+        ("mm\0\0", "mm"),
+        ("millim", "mm"),
+        ("cent", "cm"),
+        ("cm ", "cm"),
+    ],
+)
+def test_unit_strings_are_read_leniently(written: str, unit: str) -> None:
+    assert length_unit(written) == unit
+
+
+@pytest.mark.parametrize("written", ["", "me", "inch", "volts"])
+def test_a_string_naming_no_length_unit_is_none(written: str) -> None:
+    assert length_unit(written) is None
+
+
+def test_loaded_stretches_are_the_runs_above_the_threshold() -> None:
+    fz = np.array([0, 30, 30, 5, 30, 30, 30, 0, 25], dtype=float)
+    assert loaded_stretches(fz, 20.0) == [slice(1, 3), slice(4, 7), slice(8, 9)]
+    assert loaded_stretches(np.zeros(4), 20.0) == []

@@ -159,11 +159,19 @@ def test_a_c3d_recording_stores_the_plates_cop_in_metres_about_its_centre_with_i
     assert out["n_samples"] == len(COP)
     assert out["settings"]["plate"] == {
         "rate_hz": RATE,
+        "rate_source": "header",
         "position_unit": "mm",
+        "position_unit_read_as": "mm",
+        "position_unit_reason": "the file's unit",
+        "lab_axes": {"vertical": "z", "x": "x", "y": "y"},
         "force_unit": "N",
         "axes": {"x": "right", "y": "forward"},
         "min_fz": 20.0,
         "platform": 1,
+        "platform_choice": "most load",
+        "platform_loads_ns": [pytest.approx(fz.sum() / RATE, abs=1e-3)],
+        "events": "instructions",
+        "n_events": len(events),
         "unloaded_samples": 15,
     }
     rec = stored(app, out["id"])
@@ -189,19 +197,22 @@ def test_a_c3d_and_the_same_samples_as_json_make_the_same_demonstrations(
     ]
 
 
-def test_the_plate_option_picks_one_of_several_platforms(
+def test_the_plate_option_picks_one_of_several_platforms_and_without_it_the_most_loaded(
     app: FastAPI, client: TestClient, auth: dict[str, str], tmp_path: Path
 ) -> None:
     data = c3d_bytes(tmp_path, COP, platforms=2)
     dem = make_demonstrator(client, auth)
-    out = created(post_file(client, auth, dem["id"], data, "two.c3d", platform=2))
-    rec = stored(app, out["id"])
-    np.testing.assert_allclose(np.column_stack([rec.x, rec.y]), COP, atol=1e-5)
-    assert rec.instruction is None and set(out["segments"]) == {"forward", "left"}  # nearest direction
+    for given in ({"platform": 2}, {}):
+        out = created(post_file(client, auth, dem["id"], data, "two.c3d", **given))
+        rec = stored(app, out["id"])
+        np.testing.assert_allclose(np.column_stack([rec.x, rec.y]), COP, atol=1e-5)
+        assert rec.instruction is None and set(out["segments"]) == {"forward", "left"}  # nearest direction
+        assert out["settings"]["plate"]["platform"] == 2
+        assert out["settings"]["plate"]["platform_choice"] == ("given" if given else "most load")
     errors = problem(post_file(client, auth, dem["id"], data, "two.c3d", platform=3))
     assert errors[0]["pointer"] == "/plate/platform" and "has 2 force platforms" in errors[0]["message"]
-    errors = problem(post_file(client, auth, dem["id"], data, "two.c3d"))  # platform 1 carries nothing
-    assert errors[0]["pointer"] == "/samples" and "no sample has |Fz| ≥ 20 N" in errors[0]["message"]
+    errors = problem(post_file(client, auth, dem["id"], data, "two.c3d", platform=1))  # carries nothing
+    assert errors[0]["pointer"] == "/plate/platform" and "never loaded" in errors[0]["message"]
 
 
 BAD_C3D: list[tuple[str, dict[str, Any], str, str]] = [

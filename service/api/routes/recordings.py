@@ -40,7 +40,7 @@ RECORDING_IN = TypeAdapter(RecordingIn)
 JSON_OBJECT = "A JSON object, as in the JSON body."
 FILE_FORM = {
     "type": "object",
-    "required": ["file", "bounds"],
+    "required": ["file"],
     "properties": {
         "file": {
             "type": "string",
@@ -49,15 +49,24 @@ FILE_FORM = {
             "by its bytes or a .c3d name) with a force platform; a CSV with header Fx,Fy,Fz,Mx,My,Mz, optionally "
             "t (s) and instruction. One row or frame per sample, in time order.",
         },
-        "bounds": {"type": "string", "description": f"{JSON_OBJECT} x_min, x_max, y_min, y_max."},
+        "bounds": {
+            "type": "string",
+            "description": f"{JSON_OBJECT} x_min, x_max, y_min, y_max (optional for `standing`).",
+        },
+        "protocol": {"type": "string", "description": "`movements` (default) or `standing`."},
+        "metadata": {
+            "type": "string",
+            "description": f'{JSON_OBJECT} the lab\'s labels, e.g. {{"vision": "closed"}}.',
+        },
+        "units": {"type": "string", "description": "COP CSV only: the length unit of x and y, e.g. `cm`."},
         "mdp_id": {"type": "string", "description": "A velocity-grid MDP of your lab (or give grid)."},
         "grid": {"type": "string", "description": f"{JSON_OBJECT} width, height, gamma."},
         "discretise": {"type": "string", "description": f"{JSON_OBJECT} smooth_s."},
         "segment": {"type": "string", "description": f"{JSON_OBJECT} the segment settings."},
         "plate": {
             "type": "string",
-            "description": f"{JSON_OBJECT} force-plate files only: axes, min_fz, platform (C3D), rate_hz, "
-            "moment_unit, origin_depth (CSV of forces and moments).",
+            "description": f"{JSON_OBJECT} force-plate files only: axes, min_fz, platform and events (C3D), "
+            "rate_hz, moment_unit, origin_depth (CSV of forces and moments).",
         },
         "name": {"type": "string"},
     },
@@ -78,7 +87,9 @@ FILE_FORM = {
     "the plate's centre, in the axes its `plate.axes` declare; unloaded samples (|Fz| < `plate.min_fz`) at the "
     'start and end are cut away (docs/motion.md, "Force-plate files"). All or nothing: an invalid recording '
     "(errors name the sample, e.g. `/samples/17/t`, and the CSV line; `/file` a file without a usable force "
-    "platform) stores nothing.",
+    'platform) stores nothing. With `protocol: "standing"` (a quiet-standing trial) the samples are stored '
+    "whole, not cut and not mapped onto an MDP (`bounds` optional, C3D events ignored by default, the longest "
+    "loaded stretch of a plate file kept); `GET /v1/recordings/{id}/sway` gives its sway measures.",
     responses=OTHER_MDP,
     openapi_extra=request_body(
         RecordingIn,
@@ -99,7 +110,9 @@ async def upload_recording(
     if kind == "multipart/form-data":
         form, upload = await form_body(request)
         options = form_options(form)
-        samples = await run_in_threadpool(file_samples, upload.filename, await upload.read(), options.plate)
+        samples = await run_in_threadpool(
+            file_samples, upload.filename, await upload.read(), options.plate, options.protocol
+        )
     elif kind == "application/json":
         body = await json_body(request, RECORDING_IN)
         options, samples = body, json_samples(body)

@@ -15,7 +15,8 @@ from service.store.models.base import ID_LENGTH, Base, CreatedAtMixin
 
 
 class Recording(CreatedAtMixin, Base):
-    """One COP recording of a demonstrator, mapped onto a velocity-grid MDP.
+    """One COP recording of a demonstrator: cut into movements on a velocity-grid MDP, or (``standing``) kept
+    whole for its sway measures, with no MDP.
 
     Blobs: ``samples`` (N, 3) float32 columns t, x, y; ``instructions`` (N,) int32 index into
     `metairl_engine.grids.DIRECTION_NAMES` (-1: no instruction), absent when the upload had no instructions.
@@ -30,7 +31,11 @@ class Recording(CreatedAtMixin, Base):
     demonstrator_id: Mapped[str] = mapped_column(
         String(ID_LENGTH), ForeignKey("demonstrators.id", ondelete="CASCADE"), index=True
     )
-    mdp_id: Mapped[str] = mapped_column(String(ID_LENGTH), ForeignKey("mdps.id"))
+    mdp_id: Mapped[str | None] = mapped_column(String(ID_LENGTH), ForeignKey("mdps.id"))
+    protocol: Mapped[str] = mapped_column(String(16), server_default="movements")
+    """``movements`` (out-and-back movements cut into demonstrations) or ``standing`` (stored whole)."""
+    meta: Mapped[dict[str, Any] | None] = mapped_column("metadata", JSON)
+    """The lab's labels of the trial, e.g. ``{"vision": "closed", "surface": "foam"}``."""
     name: Mapped[str | None] = mapped_column(String(200))
     format: Mapped[str] = mapped_column(String(8))
     """``json``, ``csv``, ``c3d`` or ``forces`` (a CSV of plate forces and moments): how the samples came."""

@@ -25,7 +25,8 @@ const state = {
   watching: new Map(), // id -> AbortController
   selected: null, // job id whose results are shown
   motion: null, // demonstrator id whose motion readout is shown
-  blobUrls: { results: [], comparison: [] }, // object URLs of the pictures shown, by the view that shows them
+  blobUrls: { results: [], comparison: [], sway: [] }, // object URLs of the pictures shown, by the view that shows them
+  swayCall: 0, // bumped by each showSway, so an earlier call's late answers never redraw the sway panel
   listTimer: null,
   generation: 0, // bumped when the key changes, so late answers for the old key are dropped
   resultsCall: 0, // bumped by each showResults, so an earlier call's late answers never redraw the results
@@ -247,6 +248,7 @@ function renderDemonstrators() {
                 .join("; "),
               " ",
               el("button", { class: "small quiet", "data-action": "motion", onclick: () => showMotion(d.id, { scroll: true }) }, "Motion readout"),
+              swayButton(d),
             )
           : el("div", { class: "sub" }, "no recordings"),
       ),
@@ -1003,3 +1005,111 @@ document.addEventListener("DOMContentLoaded", () => {
   $("webhook-form").addEventListener("submit", addWebhook);
   if (state.key) useKey(state.key);
 });
+
+// ---- quiet standing ------------------------------------------------------------------------------
+
+// The sway measures shown, with their labels and whether they are lengths (L), areas (A) or neither.
+const SWAY_MEASURES = [
+  ["area95", "95 % ellipse area", "A"],
+  ["mean_velocity", "mean velocity", "L/s"],
+  ["path_length", "path length", "L"],
+  ["mean_distance", "mean distance", "L"],
+  ["rms_x", "RMS x", "L"],
+  ["rms_y", "RMS y", "L"],
+  ["range_x", "range x", "L"],
+  ["range_y", "range y", "L"],
+  ["sway_area_per_second", "sway area / s", "A/s"],
+  ["mean_frequency", "mean frequency", "Hz"],
+  ["f95", "95 % power frequency", "Hz"],
+];
+
+function swayUnit(kind, units) {
+  const length = units || "units";
+  return { A: `${length}²`, "A/s": `${length}²/s`, L: length, "L/s": `${length}/s`, Hz: "Hz" }[kind];
+}
+
+// A "Sway" button for a demonstrator with standing trials (none otherwise).
+function swayButton(d) {
+  if (!d.recordings.some((r) => r.protocol === "standing")) return null;
+  return el("button", { class: "small quiet", "data-action": "sway", onclick: () => showSway(d.id, { scroll: true }) }, "Sway");
+}
+
+// The sway panel of a demonstrator: one trial's measures and COP picture, and its trials compared by label.
+async function showSway(id, { scroll = false } = {}) {
+  const d = state.demonstrators.get(id);
+  const trials = d ? d.recordings.filter((r) => r.protocol === "standing") : [];
+  const section = $("sway");
+  section.hidden = false;
+  section.dataset.demonstrator = id;
+  $("sway-title").textContent = `Quiet standing of ${demonstratorName(id)}`;
+  $("sway-meta").textContent = `${trials.length} standing trial${trials.length === 1 ? "" : "s"}`;
+  const select = $("sway-recording");
+  select.replaceChildren(
+    ...trials.map((r) => el("option", { value: r.id }, `${r.name || r.id}${labelsText(r.metadata)}`)),
+  );
+  select.onchange = () => showSwayTrial(select.value);
+  if (scroll) section.scrollIntoView({ block: "start" });
+  if (trials.length) showSwayTrial(trials[0].id);
+  await showSwayGroups(id, trials);
+}
+
+function labelsText(metadata) {
+  const entries = Object.entries(metadata || {});
+  return entries.length ? ` (${entries.map(([k, v]) => `${k}: ${v}`).join(", ")})` : "";
+}
+
+async function showSwayTrial(recordingId) {
+  const call = ++state.swayCall;
+  const current = () => call === state.swayCall;
+  releaseBlobs("sway");
+  $("sway-measures").replaceChildren(loading());
+  const img = el("img", { alt: "COP path with its 95 % ellipse", "data-recording": recordingId });
+  $("sway-picture").replaceChildren(img);
+  try {
+    const sway = await getJson(`/v1/recordings/${encodeURIComponent(recordingId)}/sway`);
+    if (!current()) return;
+    $("sway-measures").replaceChildren(
+      el(
+        "table",
+        { class: "readout sway-measures" },
+        el("tbody", {}, SWAY_MEASURES.map(([key, label, kind]) =>
+          el("tr", { "data-measure": key }, el("th", {}, label), el("td", { class: "num" }, fmt(sway.descriptors[key])), el("td", { class: "meta" }, swayUnit(kind, sway.units))),
+        )),
+      ),
+      el("p", { class: "sub" }, `${sway.n_samples} samples at ${fmt(sway.rate_hz, 4)} Hz over ${fmt(sway.duration_s, 3)} s`),
+    );
+    loadImage(img, "sway", current, `/v1/recordings/${encodeURIComponent(recordingId)}/sway?format=png`);
+  } catch (error) {
+    if (!current()) return;
+    $("sway-measures").replaceChildren(unavailable(error));
+  }
+}
+
+// Trials grouped by `vision` when they carry it, else by their first label; the Romberg quotient for vision.
+async function showSwayGroups(id, trials) {
+  const box = $("sway-groups");
+  const labels = [...new Set(trials.flatMap((r) => Object.keys(r.metadata || {})))];
+  const by = labels.includes("vision") ? "vision" : labels[0];
+  if (!by) {
+    box.replaceChildren(el("p", { class: "empty" }, "Label the trials (metadata such as {\"vision\": \"closed\"}) to compare conditions."));
+    return;
+  }
+  box.replaceChildren(loading());
+  try {
+    const summary = await getJson(`/v1/demonstrators/${encodeURIComponent(id)}/sway-summary?by=${encodeURIComponent(by)}`);
+    const shown = ["area95", "mean_velocity", "mean_frequency"];
+    const cell = (v) => el("td", { class: "num" }, fmt(v.value), el("div", { class: "ci" }, v.low === null || v.high === null ? "" : `[${fmt(v.low)}, ${fmt(v.high)}]`));
+    const rows = summary.groups.map((g) => el("tr", { "data-group": g.label }, el("th", {}, `${by}: ${g.label} (${g.n})`), ...shown.map((m) => cell(g.measures[m]))));
+    if (summary.romberg) rows.push(el("tr", { "data-group": "romberg" }, el("th", {}, "Romberg quotient (closed / open)"), ...shown.map((m) => cell(summary.romberg[m]))));
+    box.replaceChildren(
+      el(
+        "table",
+        { class: "readout sway-groups" },
+        el("thead", {}, el("tr", {}, el("th", {}, ""), ...shown.map((m) => el("th", {}, SWAY_MEASURES.find(([k]) => k === m)[1])))),
+        el("tbody", {}, rows),
+      ),
+    );
+  } catch (error) {
+    box.replaceChildren(unavailable(error));
+  }
+}
