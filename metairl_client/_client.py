@@ -19,7 +19,7 @@ import numpy as np
 from metairl_client import _operations as ops
 from metairl_client._errors import error_from_response
 from metairl_client._models import JobRewardIds, JobState, Page, Trajectory
-from metairl_client._operations import JobStatusName, Quantity, RewardFormat, WebhookEvent
+from metairl_client._operations import JobStatusName, Protocol, Quantity, RewardFormat, WebhookEvent
 from metairl_client._sse import events, is_event_stream
 from metairl_client._transport import Call, Retries, Timeout, send
 from metairl_client._version import __version__
@@ -234,17 +234,30 @@ class Client:
         demonstrator_id: str,
         file: Path | bytes,
         *,
-        mdp_id: str,
-        bounds: Mapping[str, float],
+        mdp_id: str | None = None,
+        bounds: Mapping[str, float] | None = None,
         name: str | None = None,
         plate: Mapping[str, Any] | None = None,
+        protocol: Protocol = "movements",
+        metadata: Mapping[str, Any] | None = None,
     ) -> dict[str, Any]:
-        """`POST /v1/demonstrators/{id}/recordings` with a recording file on a plate of ``bounds`` (``x_min``,
-        ``x_max``, ``y_min``, ``y_max``), mapped onto the velocity grid ``mdp_id``: a CSV of centre-of-pressure
-        samples (``t,x,y`` and optionally ``instruction``), a C3D file, or a CSV of plate forces and moments;
-        ``plate`` says how to read a force-plate file (docs/motion.md). Returns the recording."""
+        """`POST /v1/demonstrators/{id}/recordings` with a recording file: a CSV of centre-of-pressure samples
+        (``t,x,y`` and optionally ``instruction``), a C3D file, or a CSV of plate forces and moments (``plate``
+        says how to read a force-plate file; docs/motion.md). ``protocol="movements"`` cuts out-and-back
+        movements onto the velocity grid ``mdp_id`` within ``bounds`` (``x_min``, ``x_max``, ``y_min``,
+        ``y_max``); ``"standing"`` stores a quiet-standing trial whole, labelled by ``metadata`` (e.g.
+        ``{"vision": "closed"}``). Returns the recording."""
         return self._call(
-            ops.upload_recording(demonstrator_id, file, mdp_id=mdp_id, bounds=bounds, name=name, plate=plate)
+            ops.upload_recording(
+                demonstrator_id,
+                file,
+                mdp_id=mdp_id,
+                bounds=bounds,
+                name=name,
+                plate=plate,
+                protocol=protocol,
+                metadata=metadata,
+            )
         )
 
     def list_recordings(
@@ -437,6 +450,47 @@ class Client:
     def compare_motion_png(self, a: str, b: str) -> bytes:
         """`POST /v1/motion-comparisons?format=png`: the comparison drawn."""
         return self._call(ops.compare_motion_png(a, b))
+
+    def recording_sway(
+        self,
+        recording_id: str,
+        *,
+        lowpass_hz: float | None = None,
+        trim_start_s: float = 0.0,
+        trim_end_s: float = 0.0,
+        spectra: bool = False,
+    ) -> dict[str, Any]:
+        """`GET /v1/recordings/{id}/sway`: path length, velocity, ellipse area, frequencies… of the COP, unfiltered
+        and untrimmed unless asked (``spectra``: the Welch spectra too)."""
+        return self._call(
+            ops.recording_sway(
+                recording_id,
+                lowpass_hz=lowpass_hz,
+                trim_start_s=trim_start_s,
+                trim_end_s=trim_end_s,
+                spectra=spectra,
+            )
+        )
+
+    def recording_sway_png(
+        self,
+        recording_id: str,
+        *,
+        lowpass_hz: float | None = None,
+        trim_start_s: float = 0.0,
+        trim_end_s: float = 0.0,
+    ) -> bytes:
+        """`GET /v1/recordings/{id}/sway?format=png`: the COP path with its 95 % prediction ellipse."""
+        return self._call(
+            ops.recording_sway_png(
+                recording_id, lowpass_hz=lowpass_hz, trim_start_s=trim_start_s, trim_end_s=trim_end_s
+            )
+        )
+
+    def sway_summary(self, demonstrator_id: str, *, by: str) -> dict[str, Any]:
+        """`GET /v1/demonstrators/{id}/sway-summary?by=label`: standing trials grouped by a metadata label, each
+        measure's mean with a 95 % interval per group and the differences between groups."""
+        return self._call(ops.sway_summary(demonstrator_id, by))
 
     # -------------------------------------------------------------- webhooks
 

@@ -20,6 +20,7 @@ RewardFormat = Literal["json", "npy", "csv", "png"]
 Quantity = Literal["reward", "value", "policy"]
 JobStatusName = Literal["queued", "running", "succeeded", "failed", "cancelled"]
 WebhookEvent = Literal["job.succeeded", "job.failed", "job.cancelled"]
+Protocol = Literal["movements", "standing"]
 
 
 # -------------------------------------------------------------- reading answers
@@ -241,16 +242,20 @@ def upload_recording(
     demonstrator_id: str,
     file: Path | bytes,
     *,
-    mdp_id: str,
-    bounds: Mapping[str, float],
+    mdp_id: str | None,
+    bounds: Mapping[str, float] | None,
     name: str | None,
     plate: Mapping[str, Any] | None,
+    protocol: Protocol,
+    metadata: Mapping[str, Any] | None,
 ) -> Call[dict[str, Any]]:
     """`POST /v1/demonstrators/{id}/recordings` with a recording file (multipart)."""
     content = file.read_bytes() if isinstance(file, Path) else file
     filename = file.name if isinstance(file, Path) else "recording"
-    form = {"mdp_id": mdp_id, "bounds": json.dumps(dict(bounds))}
+    form = {"protocol": protocol} | ({"mdp_id": mdp_id} if mdp_id else {})
+    form |= {"bounds": json.dumps(dict(bounds))} if bounds else {}
     form |= ({"name": name} if name else {}) | ({"plate": json.dumps(dict(plate))} if plate else {})
+    form |= {"metadata": json.dumps(dict(metadata))} if metadata else {}
     files = {"file": (filename, content, "application/octet-stream")}
     path = f"/v1/demonstrators/{_segment(demonstrator_id)}/recordings"
     return Call("POST", path, _object, files=files, data=form)
@@ -266,6 +271,35 @@ def recording_demonstrations(recording_id: str, label: str | None) -> Call[dict[
     """`GET /v1/recordings/{id}/demonstrations` as JSON."""
     params = {"label": label} if label is not None else None
     return Call("GET", f"/v1/recordings/{_segment(recording_id)}/demonstrations", _object, params=params)
+
+
+def recording_sway(
+    recording_id: str, *, lowpass_hz: float | None, trim_start_s: float, trim_end_s: float, spectra: bool
+) -> Call[dict[str, Any]]:
+    """`GET /v1/recordings/{id}/sway`: the posturography measures of a recording's COP."""
+    params = _sway_params(lowpass_hz, trim_start_s, trim_end_s) | ({"spectra": "true"} if spectra else {})
+    return Call("GET", f"/v1/recordings/{_segment(recording_id)}/sway", _object, params=params)
+
+
+def recording_sway_png(
+    recording_id: str, *, lowpass_hz: float | None, trim_start_s: float, trim_end_s: float
+) -> Call[bytes]:
+    """`GET /v1/recordings/{id}/sway?format=png`: the COP path with its 95 % ellipse."""
+    params = _sway_params(lowpass_hz, trim_start_s, trim_end_s) | {"format": "png"}
+    return Call("GET", f"/v1/recordings/{_segment(recording_id)}/sway", _content, params=params)
+
+
+def sway_summary(demonstrator_id: str, by: str) -> Call[dict[str, Any]]:
+    """`GET /v1/demonstrators/{id}/sway-summary?by=label`: standing trials grouped by a metadata label."""
+    path = f"/v1/demonstrators/{_segment(demonstrator_id)}/sway-summary"
+    return Call("GET", path, _object, params={"by": by})
+
+
+def _sway_params(lowpass_hz: float | None, trim_start_s: float, trim_end_s: float) -> dict[str, str]:
+    """The sway route's options, sent only when set (the route's defaults: unfiltered, untrimmed)."""
+    params = {"lowpass_hz": str(lowpass_hz)} if lowpass_hz is not None else {}
+    params |= {"trim_start_s": str(trim_start_s)} if trim_start_s else {}
+    return params | ({"trim_end_s": str(trim_end_s)} if trim_end_s else {})
 
 
 # -------------------------------------------------------------- jobs

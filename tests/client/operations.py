@@ -54,6 +54,8 @@ OPERATION_METHODS: dict[str, tuple[str, ...]] = {
     ),
     "key_states_v1_rewards__reward_id__key_states_get": ("key_states",),
     "motion_summary_v1_demonstrators__demonstrator_id__motion_summary_get": ("motion_summary",),
+    "recording_sway_route_v1_recordings__recording_id__sway_get": ("recording_sway", "recording_sway_png"),
+    "demonstrator_sway_summary_v1_demonstrators__demonstrator_id__sway_summary_get": ("sway_summary",),
     "motion_comparison_v1_motion_comparisons_post": ("compare_motion", "compare_motion_png"),
     "create_webhook_v1_webhooks_post": ("create_webhook",),
     "list_webhooks_v1_webhooks_get": ("list_webhooks", "iter_webhooks"),

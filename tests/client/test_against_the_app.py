@@ -101,6 +101,14 @@ def ids(items: Iterator[dict[str, Any]] | list[dict[str, Any]]) -> list[str]:
     return [item["id"] for item in items]
 
 
+def standing_csv(seed: int) -> bytes:
+    """20 s of a quiet-standing COP at 100 Hz (``t,x,y`` in metres): a slow random walk about the centre."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(2000) / 100
+    x, y = (np.cumsum(rng.normal(0, 1e-4, (2, t.size)), axis=1) - 5e-3 * np.sin(t)).tolist()
+    return ("t,x,y\n" + "".join(f"{a},{b},{c}\n" for a, b, c in zip(t, x, y, strict=True))).encode()
+
+
 def journey(app: FastAPI, lab: Any) -> None:
     """Call every client method once or more, checking each answer."""
     lab.check_health()
@@ -163,6 +171,17 @@ def journey(app: FastAPI, lab: Any) -> None:
     assert {d["direction"] for d in summary["directions"]} == {"forward", "left"}
     assert {d["direction"] for d in lab.compare_motion(*walkers)["directions"]} == {"forward", "left"}
     assert lab.compare_motion_png(*walkers).startswith(b"\x89PNG")
+
+    # Quiet standing: two trials labelled by vision, their sway measures, picture and summary.
+    stander = lab.create_demonstrator(name="stander")
+    trials = [
+        lab.upload_recording(stander, standing_csv(seed), protocol="standing", metadata={"vision": vision})
+        for seed, vision in enumerate(("open", "closed", "open", "closed"))
+    ]
+    sway = lab.recording_sway(trials[0]["id"], spectra=True)
+    assert sway["recording_id"] == trials[0]["id"] and sway["descriptors"]["area95"] > 0
+    assert lab.recording_sway_png(trials[0]["id"], lowpass_hz=10).startswith(b"\x89PNG")
+    assert {g["label"] for g in lab.sway_summary(stander, by="vision")["groups"]} == {"open", "closed"}
 
     # Jobs: one cancelled and deleted, one given results as the worker would.
     cancelled = lab.submit_job(dem, task_ids=[task], config={"max_steps": 5})
