@@ -102,12 +102,14 @@ def make_async_engine(settings: Settings, *, pooled: bool = True) -> AsyncEngine
 
 
 def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
-    """Per-connection SQLite settings: write-ahead log (readers never block the writer), foreign keys on."""
+    """Per-connection SQLite settings: write-ahead log (readers never block the writer), foreign keys on,
+    deleted content overwritten with zeros (a deleted demonstrator's data does not linger in free pages)."""
     cursor = dbapi_connection.cursor()
     cursor.execute("PRAGMA journal_mode=WAL")
     cursor.execute("PRAGMA foreign_keys=ON")
     cursor.execute(f"PRAGMA busy_timeout={SQLITE_BUSY_TIMEOUT_MS}")
     cursor.execute("PRAGMA synchronous=NORMAL")
+    cursor.execute("PRAGMA secure_delete=ON")
     cursor.close()
 
 

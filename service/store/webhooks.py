@@ -5,6 +5,7 @@ from __future__ import annotations
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from service.store.deletion import forget_requests
 from service.store.ids import new_id
 from service.store.models.webhooks import Webhook, WebhookDelivery
 from service.store.owned import get_owned
@@ -34,7 +35,8 @@ def list_webhooks(session: Session, *, lab_id: str, page: PageParams) -> RowPage
 
 
 def delete_webhook(session: Session, webhook: Webhook) -> None:
-    """Delete the webhook and its deliveries (pending ones are never sent)."""
+    """Delete the webhook and its deliveries (pending ones are never sent) and forget the POST that made it."""
+    forget_requests(session, [webhook.id])
     session.delete(webhook)
     session.flush()
 

@@ -24,8 +24,8 @@ from service.jobs.submit import create_job
 from service.jobs.transitions import cancel
 from service.problems import BROKER_RETRY_AFTER_S, BrokerUnavailable
 from service.store import jobs
+from service.store.deletion import commit_deletion, discard_unsent_job
 from service.store.deletion import delete_job as delete_job_rows
-from service.store.deletion import discard_unsent_job
 from service.store.owned import not_found
 
 router = APIRouter(tags=["jobs"], responses=PROBLEM_RESPONSES)
@@ -162,5 +162,5 @@ def delete_job(job: JobDep, session: SessionDep) -> Response:
     """Removes a finished job with its events and learned rewards (values, policies) and their stored
     arrays; 409 while it is queued or running (cancel it first)."""
     delete_job_rows(session, job)
-    session.commit()
+    commit_deletion(session)
     return Response(status_code=status.HTTP_204_NO_CONTENT)

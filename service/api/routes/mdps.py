@@ -30,6 +30,7 @@ from service.problems import Unprocessable
 from service.settings import Settings
 from service.sizes import check_mdp_size
 from service.store import mdps
+from service.store.deletion import commit_deletion
 from service.store.deletion import delete_mdp as delete_mdp_rows
 from service.store.loaders import load_mdp
 
@@ -215,7 +216,7 @@ def delete_mdp(mdp_id: str, lab: LabDep, session: SessionDep) -> Response:
     """Removes the MDP and its stored arrays; 409 while a task or recording still uses it (delete those
     first)."""
     delete_mdp_rows(session, mdps.get_mdp(session, mdp_id, lab_id=lab.id))
-    session.commit()
+    commit_deletion(session)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 

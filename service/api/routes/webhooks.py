@@ -17,6 +17,7 @@ from service.api.schemas.webhooks import WebhookCreated, WebhookIn, WebhookOut
 from service.jobs.webhooks import check_target, new_secret
 from service.problems import Unprocessable
 from service.store import webhooks
+from service.store.deletion import commit_deletion
 
 router = APIRouter(tags=["webhooks"], responses=PROBLEM_RESPONSES)
 
@@ -69,5 +70,5 @@ def read_webhook(webhook_id: str, session: SessionDep, lab: LabDep) -> WebhookOu
 def delete_webhook(webhook_id: str, session: SessionDep, lab: LabDep) -> Response:
     """Stop calling the URL; deliveries not yet sent are dropped."""
     webhooks.delete_webhook(session, webhooks.get_webhook(session, webhook_id, lab_id=lab.id))
-    session.commit()
+    commit_deletion(session)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
