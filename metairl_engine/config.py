@@ -137,7 +137,7 @@ class FitConfig:
         need(self.patience >= 0, "patience", "must be ≥ 0")
         need(0 <= self.ensemble <= 16, "ensemble", "must be in 0..16 (0: automatic)")
         need(0 <= self.sharing_blocks <= 1024, "sharing_blocks", "must be in 0..1024 (0: automatic)")
-        need(self.seed >= 0, "seed", "must be ≥ 0")
+        need(0 <= self.seed < 2**63, "seed", "must be in 0..2**63 - 1")
         check(issues)
 
     def to_dict(self) -> dict[str, Any]:

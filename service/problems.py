@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import logging
 from collections.abc import Sequence
 from typing import Any
@@ -237,6 +238,16 @@ def install_handlers(app: FastAPI) -> None:
     async def _invalid_input(_request: Request, exc: InvalidInput) -> JSONResponse:
         """The engine's validation errors: 422 with its issues."""
         return problem_response(from_invalid_input(exc))
+
+    @app.exception_handler(csv.Error)
+    async def _csv_error(_request: Request, exc: csv.Error) -> JSONResponse:
+        """A CSV the parsers did not catch an error of (a header line past the cell limit): 422 at /file."""
+        return problem_response(
+            Unprocessable(
+                f"The uploaded CSV cannot be read: {exc}.",
+                errors=[{"pointer": "/file", "message": f"is not a readable CSV ({exc})"}],
+            )
+        )
 
     @app.exception_handler(RequestValidationError)
     async def _request_validation(request: Request, exc: RequestValidationError) -> JSONResponse:

@@ -46,6 +46,11 @@ class Settings(BaseSettings):
     """Most elements of any one array of an upload (256 MB as float32); an `.npz` member's header is checked
     against this before the member is read."""
 
+    api_max_request_memory_mb: int = Field(default=512, ge=16)
+    """Memory one API request may ask for beyond the process's baseline (MiB): every upload's size in memory is
+    estimated before it is built (an `.npz` member's declared shape × item size, a CSV's rows, a JSON body, a
+    grid's arrays) and a request over it is refused with a 422 naming this setting."""
+
     max_hidden_units: int = 4096
     """Largest hidden layer a job's ``config.hidden`` may ask for."""
 

@@ -64,3 +64,15 @@ def check_hidden(hidden: Sequence[int], settings: Settings) -> None:
                 f"/config/hidden/{i}",
                 f"asks for {units:,} hidden units; at most {settings.max_hidden_units:,} (METAIRL_MAX_HIDDEN_UNITS)",
             )
+
+
+def check_request_memory(what: str, nbytes: float, settings: Settings, *, pointer: str) -> None:
+    """422 if building `what` would take `nbytes` of memory, more than ``api_max_request_memory_mb``; called
+    before the allocation, with an estimate from declared shapes, row counts or body size."""
+    budget = settings.api_max_request_memory_mb * 2**20
+    if nbytes > budget:
+        raise too_large(
+            pointer,
+            f"{what} would take about {nbytes / 2**20:,.0f} MiB of memory; at most "
+            f"{settings.api_max_request_memory_mb:,} MiB per request (METAIRL_API_MAX_REQUEST_MEMORY_MB)",
+        )

@@ -15,6 +15,7 @@ from service.api.async_db import async_engine
 from service.api.auth import KeyCache
 from service.api.docs import install_docs
 from service.api.idempotency import Idempotency
+from service.api.input_guard import InputGuard
 from service.api.limits import BodySizeLimit
 from service.api.openapi import install_openapi
 from service.api.ratelimit import RateLimit
@@ -101,6 +102,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.job_queue = CeleryJobQueue(settings)
     install_handlers(app)
     app.add_middleware(Idempotency, settings=settings)
+    app.add_middleware(InputGuard)  # a NUL or too-deep JSON never reaches the key's record or the database
     app.add_middleware(BodySizeLimit, settings=settings)
     app.add_middleware(RateLimit, settings=settings)  # outermost: a refusal costs no body and no database
     for module in (

@@ -27,6 +27,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from service.api.auth import lab_for_key
+from service.json_input import parse_json
 from service.problems import ApiError, Conflict, Unprocessable, database_unavailable, problem_response
 from service.settings import Settings
 from service.store.models.base import ID_LENGTH, utcnow
@@ -50,8 +51,8 @@ def fingerprint(scope: Scope, body: bytes) -> str:
     content = body
     if media.strip() == b"application/json":
         try:
-            content = json.dumps(json.loads(body), sort_keys=True, separators=(",", ":")).encode()
-        except ValueError:
+            content = json.dumps(parse_json(body), sort_keys=True, separators=(",", ":")).encode()
+        except ApiError:
             content = body
     elif b"boundary=" in params:
         boundary = params.split(b"boundary=", 1)[1].split(b";")[0].strip(b' "')
@@ -96,7 +97,7 @@ class Idempotency:
             )
             await problem_response(error)(scope, receive, send)
             return
-        body = await _read_body(receive)
+        body = await read_body(receive)
         fp = fingerprint(scope, body)
         claim = secrets.token_hex(16)
         try:
@@ -111,7 +112,7 @@ class Idempotency:
             await _replay(outcome, send)
             return
         if outcome is None:  # no valid key: let the route answer 401
-            await self.app(scope, _replaying_receive(body, receive), send)
+            await self.app(scope, replaying_receive(body, receive), send)
             return
         lab_id = outcome
         captured: dict[str, Any] = {"status": 500, "headers": [], "body": b"", "recorded": False}
@@ -143,7 +144,7 @@ class Idempotency:
 
         renewing = asyncio.create_task(self._renew_while_running(makers, lab_id, key, claim))
         try:
-            await self.app(scope, _replaying_receive(body, receive), recording_send)
+            await self.app(scope, replaying_receive(body, receive), recording_send)
         finally:
             renewing.cancel()
             if not captured["recorded"]:  # no complete response: release the claim
@@ -299,7 +300,7 @@ def _created_id(status: int, body: bytes) -> str | None:
     return created if isinstance(created, str) and len(created) <= ID_LENGTH else None
 
 
-async def _read_body(receive: Receive) -> bytes:
+async def read_body(receive: Receive) -> bytes:
     """The whole request body."""
     chunks = []
     while True:
@@ -312,7 +313,7 @@ async def _read_body(receive: Receive) -> bytes:
     return b"".join(chunks)
 
 
-def _replaying_receive(body: bytes, receive: Receive) -> Receive:
+def replaying_receive(body: bytes, receive: Receive) -> Receive:
     """A `receive` that hands the already-read body to the app in one message, then defers to `receive`."""
     sent = False
 

@@ -3,7 +3,6 @@ other fields; every problem a 422 naming the sample (and its CSV line). Force-pl
 
 from __future__ import annotations
 
-import json
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -16,6 +15,7 @@ from metairl_engine import InvalidInput
 from service.api.schemas.common import UploadFormat
 from service.api.schemas.recordings import FileOptions, RecordingIn
 from service.files.csv_rows import MAX_ERRORS, csv_error, csv_rows
+from service.json_input import nul_pointer, nul_refused, parse_json
 from service.problems import Unprocessable, validation_errors
 
 REQUIRED_COLUMNS = ("t", "x", "y")
@@ -127,13 +127,10 @@ def form_options(form: FormData) -> FileOptions:
         if key not in OBJECT_FIELDS:
             raw[key] = value
             continue
-        try:
-            raw[key] = json.loads(value)
-        except ValueError as exc:
-            raise Unprocessable(
-                f"The form field {key} must be a JSON object.",
-                errors=[{"pointer": f"/{key}", "message": f"is not valid JSON ({exc})"}],
-            ) from exc
+        raw[key] = parse_json(value, pointer=f"/{key}", what=f"The form field {key}")
+        nul = nul_pointer(raw[key], f"/{key}")
+        if nul is not None:
+            raise nul_refused(nul)
     try:
         return FileOptions.model_validate(raw)
     except ValidationError as exc:

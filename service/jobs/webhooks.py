@@ -62,16 +62,18 @@ def private_address(address: str) -> bool:
 def check_target(url: str, *, allow_private: bool) -> str | None:
     """Why ``url`` cannot be a webhook target, or None when it can: http(s) with a host, and (unless
     ``allow_private``) one whose every address is public."""
-    parts = urlsplit(url)
+    try:
+        parts = urlsplit(url)
+        port = parts.port
+    except ValueError as exc:  # a port out of range or not a number, a broken IPv6 literal
+        return f"is not a valid URL ({exc})"
     if parts.scheme not in ("http", "https") or not parts.hostname:
         return "must be an http:// or https:// URL with a host"
     if allow_private:
         return None
     host = parts.hostname
     try:
-        addresses = {
-            info[4][0] for info in socket.getaddrinfo(host, parts.port or 443, type=socket.SOCK_STREAM)
-        }
+        addresses = {info[4][0] for info in socket.getaddrinfo(host, port or 443, type=socket.SOCK_STREAM)}
     except (OSError, UnicodeError):
         return f"the host {host!r} cannot be resolved"
     blocked = sorted(a for a in addresses if private_address(str(a)))
