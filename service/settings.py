@@ -155,6 +155,19 @@ class Settings(BaseSettings):
     webhook_backoff_s: float = 5.0
     """Wait before the second delivery attempt; each later wait doubles (capped at an hour)."""
 
+    webhook_max_per_lab: int = Field(default=25, ge=1)
+    """Most webhooks one lab may have; creating one more is a 409."""
+
+    webhook_concurrency: int = Field(default=8, ge=1)
+    """Deliveries one worker process sends at once (threads)."""
+
+    webhook_lab_concurrency: int = Field(default=2, ge=1)
+    """Of those, the most that one lab's deliveries may take: a lab with slow receivers leaves the other
+    slots to other labs."""
+
+    webhook_target_concurrency: int = Field(default=2, ge=1)
+    """Deliveries sent at once to one target (host and port)."""
+
     @property
     def resolved_database_url(self) -> str:
         """The database URL to connect to: the configured one, or the absolute SQLite file in data_dir."""

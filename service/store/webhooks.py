@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from sqlalchemy import select
+from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from service.store.deletion import forget_requests
@@ -26,6 +26,11 @@ def create_webhook(session: Session, *, lab_id: str, url: str, events: list[str]
 def get_webhook(session: Session, webhook_id: str, *, lab_id: str) -> Webhook:
     """The lab's webhook, or 404."""
     return get_owned(session, Webhook, webhook_id, lab_id=lab_id, what="webhook")
+
+
+def count_webhooks(session: Session, *, lab_id: str) -> int:
+    """How many webhooks the lab has."""
+    return session.execute(select(func.count()).where(Webhook.lab_id == lab_id)).scalar_one()
 
 
 def list_webhooks(session: Session, *, lab_id: str, page: PageParams) -> RowPage[Webhook]:
