@@ -11,6 +11,7 @@ from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from sqlalchemy.exc import OperationalError
+from sqlalchemy.exc import TimeoutError as PoolTimeout
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
@@ -283,6 +284,17 @@ def install_handlers(app: FastAPI) -> None:
         """A lost or refused database connection (the API does not ping connections before use): 503."""
         log.warning("database unavailable on %s %s: %s", request.method, request.url.path, exc.orig)
         return problem_response(database_unavailable())
+
+    @app.exception_handler(PoolTimeout)
+    async def _database_busy(request: Request, exc: PoolTimeout) -> JSONResponse:
+        """Every pooled connection stayed busy for ``db_pool_timeout_s``: 503, retry shortly (never a 500)."""
+        log.warning("no database connection free on %s %s: %s", request.method, request.url.path, exc)
+        return problem_response(
+            DatabaseUnavailable(
+                "Every database connection of this API process is busy; retry in a moment.",
+                headers={"Retry-After": "1"},
+            )
+        )
 
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:

@@ -86,6 +86,10 @@ class Settings(BaseSettings):
     db_max_overflow: int = 20
     """Extra PostgreSQL connections a process may open beyond each pool at a peak (closed when returned)."""
 
+    db_pool_timeout_s: float = Field(default=10.0, gt=0)
+    """How long a request waits for a pooled PostgreSQL connection before it is answered 503 with
+    ``Retry-After`` (every connection busy)."""
+
     db_pool_recycle_s: int = 1800
     """A pooled PostgreSQL connection older than this (seconds) is replaced before use, never pinged per request."""
 
@@ -139,6 +143,10 @@ class Settings(BaseSettings):
 
     events_stream_max_s: float = 3600.0
     """Longest one event stream stays open; the client reconnects with ``Last-Event-ID`` and goes on."""
+
+    events_max_streams_per_key: int = Field(default=64, ge=1)
+    """Event streams (`GET /v1/jobs/{id}/events` as SSE) one API key may hold open at once in one API process;
+    one more is a 429 with ``Retry-After``. A stream holds no database connection between its polls."""
 
     webhook_allow_private: bool = False
     """Accept webhook URLs on private, loopback or link-local addresses (tests, one-machine set-ups)."""

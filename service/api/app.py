@@ -32,6 +32,7 @@ from service.api.routes import (
     ui,
     webhooks,
 )
+from service.api.sse import StreamSlots
 from service.jobs.queue import CeleryJobQueue
 from service.problems import install_handlers
 from service.settings import Settings, get_settings
@@ -100,6 +101,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.key_sessionmaker = make_sessionmaker(engine.execution_options(isolation_level="AUTOCOMMIT"))
     app.state.key_cache = KeyCache(settings.api_key_cache_s)
     app.state.job_queue = CeleryJobQueue(settings)
+    app.state.stream_slots = StreamSlots(settings.events_max_streams_per_key)
     install_handlers(app)
     app.add_middleware(Idempotency, settings=settings)
     app.add_middleware(InputGuard)  # a NUL or too-deep JSON never reaches the key's record or the database

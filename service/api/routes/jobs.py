@@ -10,6 +10,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Header, Query, Request, Response, status
 from fastapi.responses import StreamingResponse
+from starlette.background import BackgroundTask
 
 from service.api.auth import BearerDep, authorised_row
 from service.api.deps import JobDep, LabDep, QueueDep, SessionDep, SettingsDep
@@ -126,16 +127,21 @@ def list_events(
     """
     if not wants_stream(accept):
         return Page[JobEventOut].of(jobs.list_events(session, job, page=page), JobEventOut.of)
+    session.close()  # the stream reads with a session per poll: hold no connection while it is open
     settings = request.app.state.settings
+    slot = request.app.state.stream_slots.take(request.headers.get("authorization", ""))
     stream = job_events(
         request.app.state.sessionmaker,
         job.id,
         after_id=parse_last_event_id(last_event_id),
         poll_s=settings.events_poll_s,
         max_s=settings.events_stream_max_s,
+        slot=slot,
     )
     headers = {"Cache-Control": "no-cache", "X-Accel-Buffering": "no"}
-    return StreamingResponse(stream, media_type=MEDIA_TYPE, headers=headers)
+    return StreamingResponse(
+        stream, media_type=MEDIA_TYPE, headers=headers, background=BackgroundTask(slot.release)
+    )
 
 
 @router.post(
