@@ -17,6 +17,7 @@ from service.api.docs import install_docs
 from service.api.idempotency import Idempotency
 from service.api.input_guard import InputGuard
 from service.api.limits import BodySizeLimit
+from service.api.memory import ReturnMemory
 from service.api.openapi import install_openapi
 from service.api.ratelimit import RateLimit
 from service.api.routes import (
@@ -104,6 +105,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.stream_slots = StreamSlots(settings.events_max_streams_per_key)
     install_handlers(app)
     app.add_middleware(Idempotency, settings=settings)
+    app.add_middleware(ReturnMemory)
     app.add_middleware(InputGuard)  # a NUL or too-deep JSON never reaches the key's record or the database
     app.add_middleware(BodySizeLimit, settings=settings)
     app.add_middleware(RateLimit, settings=settings)  # outermost: a refusal costs no body and no database

@@ -28,7 +28,7 @@ from service.api.schemas.mdps import (
 from service.files.npz import npz_headers, read_npz, write_npz
 from service.problems import Unprocessable
 from service.settings import Settings
-from service.sizes import check_mdp_size
+from service.sizes import check_grid, check_mdp_size
 from service.store import mdps
 from service.store.deletion import commit_deletion
 from service.store.deletion import delete_mdp as delete_mdp_rows
@@ -93,6 +93,15 @@ async def create_mdp(
             mdp = await run_in_threadpool(mdps.build_explicit, body)
             grid = None
         else:
+            check_grid(
+                width=body.width,
+                height=body.height,
+                moves=body.moves or (8 if body.velocity else 4),
+                stay=body.stay,
+                slip=body.slip,
+                velocity=body.velocity,
+                settings=settings,
+            )
             mdp, grid = await run_in_threadpool(mdps.build_grid, body)
         check_mdp_size(
             mdp.n_states,
