@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import logging
 from collections.abc import Sequence
 from typing import Any
@@ -10,6 +11,7 @@ from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from sqlalchemy.exc import OperationalError
+from sqlalchemy.exc import TimeoutError as PoolTimeout
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
@@ -238,6 +240,16 @@ def install_handlers(app: FastAPI) -> None:
         """The engine's validation errors: 422 with its issues."""
         return problem_response(from_invalid_input(exc))
 
+    @app.exception_handler(csv.Error)
+    async def _csv_error(_request: Request, exc: csv.Error) -> JSONResponse:
+        """A CSV the parsers did not catch an error of (a header line past the cell limit): 422 at /file."""
+        return problem_response(
+            Unprocessable(
+                f"The uploaded CSV cannot be read: {exc}.",
+                errors=[{"pointer": "/file", "message": f"is not a readable CSV ({exc})"}],
+            )
+        )
+
     @app.exception_handler(RequestValidationError)
     async def _request_validation(request: Request, exc: RequestValidationError) -> JSONResponse:
         """FastAPI's parameter and body validation: 422 with pointers; 415 for a body that is not JSON; a
@@ -272,6 +284,17 @@ def install_handlers(app: FastAPI) -> None:
         """A lost or refused database connection (the API does not ping connections before use): 503."""
         log.warning("database unavailable on %s %s: %s", request.method, request.url.path, exc.orig)
         return problem_response(database_unavailable())
+
+    @app.exception_handler(PoolTimeout)
+    async def _database_busy(request: Request, exc: PoolTimeout) -> JSONResponse:
+        """Every pooled connection stayed busy for ``db_pool_timeout_s``: 503, retry shortly (never a 500)."""
+        log.warning("no database connection free on %s %s: %s", request.method, request.url.path, exc)
+        return problem_response(
+            DatabaseUnavailable(
+                "Every database connection of this API process is busy; retry in a moment.",
+                headers={"Retry-After": "1"},
+            )
+        )
 
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:

@@ -46,6 +46,11 @@ class Settings(BaseSettings):
     """Most elements of any one array of an upload (256 MB as float32); an `.npz` member's header is checked
     against this before the member is read."""
 
+    api_max_request_memory_mb: int = Field(default=512, ge=16)
+    """Memory one API request may ask for beyond the process's baseline (MiB): every upload's size in memory is
+    estimated before it is built (an `.npz` member's declared shape × item size, a CSV's rows, a JSON body, a
+    grid's arrays) and a request over it is refused with a 422 naming this setting."""
+
     max_hidden_units: int = 4096
     """Largest hidden layer a job's ``config.hidden`` may ask for."""
 
@@ -80,6 +85,10 @@ class Settings(BaseSettings):
 
     db_max_overflow: int = 20
     """Extra PostgreSQL connections a process may open beyond each pool at a peak (closed when returned)."""
+
+    db_pool_timeout_s: float = Field(default=10.0, gt=0)
+    """How long a request waits for a pooled PostgreSQL connection before it is answered 503 with
+    ``Retry-After`` (every connection busy)."""
 
     db_pool_recycle_s: int = 1800
     """A pooled PostgreSQL connection older than this (seconds) is replaced before use, never pinged per request."""
@@ -135,6 +144,10 @@ class Settings(BaseSettings):
     events_stream_max_s: float = 3600.0
     """Longest one event stream stays open; the client reconnects with ``Last-Event-ID`` and goes on."""
 
+    events_max_streams_per_key: int = Field(default=64, ge=1)
+    """Event streams (`GET /v1/jobs/{id}/events` as SSE) one API key may hold open at once in one API process;
+    one more is a 429 with ``Retry-After``. A stream holds no database connection between its polls."""
+
     webhook_allow_private: bool = False
     """Accept webhook URLs on private, loopback or link-local addresses (tests, one-machine set-ups)."""
 
@@ -149,6 +162,19 @@ class Settings(BaseSettings):
 
     webhook_backoff_s: float = 5.0
     """Wait before the second delivery attempt; each later wait doubles (capped at an hour)."""
+
+    webhook_max_per_lab: int = Field(default=25, ge=1)
+    """Most webhooks one lab may have; creating one more is a 409."""
+
+    webhook_concurrency: int = Field(default=8, ge=1)
+    """Deliveries one worker process sends at once (threads)."""
+
+    webhook_lab_concurrency: int = Field(default=2, ge=1)
+    """Of those, the most that one lab's deliveries may take: a lab with slow receivers leaves the other
+    slots to other labs."""
+
+    webhook_target_concurrency: int = Field(default=2, ge=1)
+    """Deliveries sent at once to one target (host and port)."""
 
     @property
     def resolved_database_url(self) -> str:

@@ -64,3 +64,35 @@ def check_hidden(hidden: Sequence[int], settings: Settings) -> None:
                 f"/config/hidden/{i}",
                 f"asks for {units:,} hidden units; at most {settings.max_hidden_units:,} (METAIRL_MAX_HIDDEN_UNITS)",
             )
+
+
+def check_request_memory(what: str, nbytes: float, settings: Settings, *, pointer: str) -> None:
+    """422 if building `what` would take `nbytes` of memory, more than ``api_max_request_memory_mb``; called
+    before the allocation, with an estimate from declared shapes, row counts or body size."""
+    budget = settings.api_max_request_memory_mb * 2**20
+    if nbytes > budget:
+        raise too_large(
+            pointer,
+            f"{what} would take about {nbytes / 2**20:,.0f} MiB of memory; at most "
+            f"{settings.api_max_request_memory_mb:,} MiB per request (METAIRL_API_MAX_REQUEST_MEMORY_MB)",
+        )
+
+
+GRID_BYTES_PER_TRANSITION = 40
+"""Peak memory per (state, action) while a deterministic grid is built and validated (measured: 32M
+state-actions took 1.2 GB), and per stored transition of a slippery one (`check_grid`)."""
+GRID_BYTES_PER_STATE = 128
+"""Peak memory per state of a grid's coordinate features and layout."""
+
+
+def check_grid(
+    *, width: int, height: int, moves: int, stay: bool, slip: float, velocity: bool, settings: Settings
+) -> None:
+    """422 before a grid is built if its states × actions exceed `max_state_actions` or building it would take
+    more than the per-request memory budget (a slippery grid stores up to one transition per action pair)."""
+    n_states = width * height * (8 if velocity else 1)
+    n_actions = 8 if velocity else moves + (1 if stay else 0)
+    check_mdp_size(n_states, n_actions, None, settings, pointer="", what="the grid")
+    transitions = n_states * n_actions * (n_actions if slip > 0 else 1)
+    estimate = transitions * GRID_BYTES_PER_TRANSITION + n_states * GRID_BYTES_PER_STATE
+    check_request_memory("building the grid", estimate, settings, pointer="")

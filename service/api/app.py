@@ -15,7 +15,9 @@ from service.api.async_db import async_engine
 from service.api.auth import KeyCache
 from service.api.docs import install_docs
 from service.api.idempotency import Idempotency
+from service.api.input_guard import InputGuard
 from service.api.limits import BodySizeLimit
+from service.api.memory import ReturnMemory
 from service.api.openapi import install_openapi
 from service.api.ratelimit import RateLimit
 from service.api.routes import (
@@ -32,6 +34,7 @@ from service.api.routes import (
     ui,
     webhooks,
 )
+from service.api.sse import StreamSlots
 from service.jobs.queue import CeleryJobQueue
 from service.problems import install_handlers
 from service.settings import Settings, get_settings
@@ -100,8 +103,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.key_sessionmaker = make_sessionmaker(engine.execution_options(isolation_level="AUTOCOMMIT"))
     app.state.key_cache = KeyCache(settings.api_key_cache_s)
     app.state.job_queue = CeleryJobQueue(settings)
+    app.state.stream_slots = StreamSlots(settings.events_max_streams_per_key)
     install_handlers(app)
     app.add_middleware(Idempotency, settings=settings)
+    app.add_middleware(ReturnMemory)
+    app.add_middleware(InputGuard)  # a NUL or too-deep JSON never reaches the key's record or the database
     app.add_middleware(BodySizeLimit, settings=settings)
     app.add_middleware(RateLimit, settings=settings)  # outermost: a refusal costs no body and no database
     for module in (

@@ -27,9 +27,10 @@ from starlette.concurrency import run_in_threadpool
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from service.api.auth import lab_for_key
+from service.json_input import parse_json
 from service.problems import ApiError, Conflict, Unprocessable, database_unavailable, problem_response
 from service.settings import Settings
-from service.store.models.base import utcnow
+from service.store.models.base import ID_LENGTH, utcnow
 from service.store.models.idempotency import IdempotentRequest
 
 log = logging.getLogger(__name__)
@@ -50,8 +51,8 @@ def fingerprint(scope: Scope, body: bytes) -> str:
     content = body
     if media.strip() == b"application/json":
         try:
-            content = json.dumps(json.loads(body), sort_keys=True, separators=(",", ":")).encode()
-        except ValueError:
+            content = json.dumps(parse_json(body), sort_keys=True, separators=(",", ":")).encode()
+        except ApiError:
             content = body
     elif b"boundary=" in params:
         boundary = params.split(b"boundary=", 1)[1].split(b";")[0].strip(b' "')
@@ -96,7 +97,7 @@ class Idempotency:
             )
             await problem_response(error)(scope, receive, send)
             return
-        body = await _read_body(receive)
+        body = await read_body(receive)
         fp = fingerprint(scope, body)
         claim = secrets.token_hex(16)
         try:
@@ -111,13 +112,15 @@ class Idempotency:
             await _replay(outcome, send)
             return
         if outcome is None:  # no valid key: let the route answer 401
-            await self.app(scope, _replaying_receive(body, receive), send)
+            await self.app(scope, replaying_receive(body, receive), send)
             return
         lab_id = outcome
-        captured: dict[str, Any] = {"status": 500, "headers": [], "body": b""}
+        captured: dict[str, Any] = {"status": 500, "headers": [], "body": b"", "recorded": False}
+        held: list[Message] = []
 
-        async def capturing_send(message: Message) -> None:
-            """Send the response on while keeping a copy of its status, headers and body."""
+        async def recording_send(message: Message) -> None:
+            """Hold the response until its last body part, record it, then send it: a retry arriving right
+            after the answer always finds it recorded."""
             if message["type"] == "http.response.start":
                 captured["status"] = message["status"]
                 captured["headers"] = [
@@ -125,19 +128,39 @@ class Idempotency:
                     for k, v in message.get("headers", [])
                     if k.decode("latin-1").lower() in REPLAYED_HEADERS
                 ]
-            elif message["type"] == "http.response.body":
-                captured["body"] += message.get("body", b"")
-            await send(message)
+                held.append(message)
+                return
+            if message["type"] != "http.response.body":
+                await send(message)
+                return
+            captured["body"] += message.get("body", b"")
+            held.append(message)
+            if message.get("more_body", False):
+                return
+            await self._record(makers, lab_id, key, claim, captured)
+            for part in held:
+                await send(part)
+            held.clear()
 
         renewing = asyncio.create_task(self._renew_while_running(makers, lab_id, key, claim))
         try:
-            await self.app(scope, _replaying_receive(body, receive), capturing_send)
+            await self.app(scope, replaying_receive(body, receive), recording_send)
         finally:
             renewing.cancel()
-            try:
-                await run_in_threadpool(self._finish, makers, lab_id, key, claim, captured)
-            except OperationalError as exc:  # the response went out; the lease lapses and a retry takes over
-                log.warning("database unavailable while recording Idempotency-Key %r: %s", key, exc.orig)
+            if not captured["recorded"]:  # no complete response: release the claim
+                captured["status"] = 500
+                await self._record(makers, lab_id, key, claim, captured)
+
+    async def _record(
+        self, makers: sessionmaker[Session], lab_id: str, key: str, claim: str, captured: dict[str, Any]
+    ) -> None:
+        """Store the captured response (or release the claim after a 5xx); a database outage leaves the lease
+        to lapse so that a retry takes over."""
+        captured["recorded"] = True
+        try:
+            await run_in_threadpool(self._finish, makers, lab_id, key, claim, captured)
+        except OperationalError as exc:
+            log.warning("database unavailable while recording Idempotency-Key %r: %s", key, exc.orig)
 
     def _claim(
         self, makers: sessionmaker[Session], bearer: str, key: str, fp: str, claim: str
@@ -259,12 +282,25 @@ class Idempotency:
                 row.status = captured["status"]
                 row.headers = captured["headers"]
                 row.body = captured["body"]
+                row.resource_id = _created_id(captured["status"], captured["body"])
                 row.claim = None
                 row.leased_until = None
             session.commit()
 
 
-async def _read_body(receive: Receive) -> bytes:
+def _created_id(status: int, body: bytes) -> str | None:
+    """The ``id`` of the resource a 2xx JSON response describes, if any (so deleting it forgets the request)."""
+    if not 200 <= status < 300:
+        return None
+    try:
+        document = json.loads(body)
+    except ValueError:
+        return None
+    created = document.get("id") if isinstance(document, dict) else None
+    return created if isinstance(created, str) and len(created) <= ID_LENGTH else None
+
+
+async def read_body(receive: Receive) -> bytes:
     """The whole request body."""
     chunks = []
     while True:
@@ -277,7 +313,7 @@ async def _read_body(receive: Receive) -> bytes:
     return b"".join(chunks)
 
 
-def _replaying_receive(body: bytes, receive: Receive) -> Receive:
+def replaying_receive(body: bytes, receive: Receive) -> Receive:
     """A `receive` that hands the already-read body to the app in one message, then defers to `receive`."""
     sent = False
 

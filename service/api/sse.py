@@ -5,19 +5,29 @@ only sleeps between them), sends each new event as ``id:``/``event:``/``data:`` 
 the JSON list's items), and ends after the job's terminal status event — or, when resumed after it with
 ``Last-Event-ID``, at once. A stream stays open at most ``events_stream_max_s``; the client then
 reconnects with the last id it saw. A comment line every few seconds keeps proxies from closing it.
+
+A stream holds no database connection between its polls (each poll checks one out and returns it), and
+each API key may hold at most ``events_max_streams_per_key`` streams open in one process (`StreamSlots`);
+a poll that finds the database gone or every connection busy ends the stream, and the client resumes.
 """
 
 from __future__ import annotations
 
 import asyncio
+import hashlib
 import json
+import threading
 import time
+from collections import Counter
 from collections.abc import AsyncIterator
 
+from sqlalchemy.exc import OperationalError
+from sqlalchemy.exc import TimeoutError as PoolTimeout
 from sqlalchemy.orm import Session, sessionmaker
 from starlette.concurrency import run_in_threadpool
 
 from service.domain.jobs import JobEventOut
+from service.problems import TooManyRequests
 from service.store import jobs
 from service.store.models.job_status import JobStatus
 
@@ -28,6 +38,42 @@ KEEPALIVE_S = 10.0
 """A comment line after this long without an event."""
 RETRY_MS = 2000
 """The reconnection delay suggested to browsers (the ``retry:`` field)."""
+
+
+class Slot:
+    """One open stream of a key; `release` gives it back (once, however often it is called)."""
+
+    def __init__(self, slots: StreamSlots, key: str):
+        self.slots, self.key, self.released = slots, key, False
+
+    def release(self) -> None:
+        """Give the slot back (idempotent: called when the stream ends and again after the response)."""
+        with self.slots.lock:
+            if not self.released:
+                self.released = True
+                self.slots.open[self.key] -= 1
+
+
+class StreamSlots:
+    """Open event streams per API key in this process: at most `cap` each, one more is a 429."""
+
+    def __init__(self, cap: int):
+        self.cap = cap
+        self.open: Counter[str] = Counter()
+        self.lock = threading.Lock()
+
+    def take(self, authorization: str) -> Slot:
+        """A slot for the key in the ``Authorization`` header; 429 with ``Retry-After`` if it holds `cap`."""
+        key = hashlib.sha256(authorization.encode()).hexdigest()
+        with self.lock:
+            if self.open[key] >= self.cap:
+                raise TooManyRequests(
+                    f"This API key already holds {self.cap} open event streams in this process, the most "
+                    "allowed (METAIRL_EVENTS_MAX_STREAMS_PER_KEY); close one, or poll the JSON log instead.",
+                    headers={"Retry-After": str(max(1, round(RETRY_MS / 1000)))},
+                )
+            self.open[key] += 1
+        return Slot(self, key)
 
 
 def wants_stream(accept: str | None) -> bool:
@@ -61,14 +107,36 @@ def _read(
 
 
 async def job_events(
+    make_session: sessionmaker[Session],
+    job_id: str,
+    *,
+    after_id: int,
+    poll_s: float,
+    max_s: float,
+    slot: Slot | None = None,
+) -> AsyncIterator[str]:
+    """The SSE text of the job's events after ``after_id``, until its terminal status (or ``max_s``, or a
+    database failure: the client reconnects after ``retry``); `slot` is released when it ends."""
+    try:
+        async for text in _events(make_session, job_id, after_id=after_id, poll_s=poll_s, max_s=max_s):
+            yield text
+    finally:
+        if slot is not None:
+            slot.release()
+
+
+async def _events(
     make_session: sessionmaker[Session], job_id: str, *, after_id: int, poll_s: float, max_s: float
 ) -> AsyncIterator[str]:
-    """The SSE text of the job's events after ``after_id``, until its terminal status (or ``max_s``)."""
+    """`job_events` without the slot."""
     yield f"retry: {RETRY_MS}\n\n"
     deadline = time.monotonic() + max_s
     quiet_since = time.monotonic()
     while True:
-        status, events = await run_in_threadpool(_read, make_session, job_id, after_id)
+        try:
+            status, events = await run_in_threadpool(_read, make_session, job_id, after_id)
+        except (OperationalError, PoolTimeout):
+            return  # the database is gone or busy: end here, the client resumes with Last-Event-ID
         for event in events:
             yield format_event(event)
             after_id = event.id

@@ -8,24 +8,40 @@ CSV line.
 from __future__ import annotations
 
 import re
+from array import array
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from metairl_engine import InvalidInput, Trajectory
-from service.files.csv_rows import MAX_ERRORS, csv_error, csv_rows
+from service.files.csv_rows import MAX_ERRORS, check_csv_memory, csv_error, csv_rows
 from service.problems import Unprocessable
+from service.settings import Settings
 
 COLUMNS = ("trajectory", "step", "state", "action")
 POINTER = re.compile(r"^/trajectories/(\d+)(?:/(states|actions)(?:/(\d+))?)?")
 INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
+NO_ACTION = INT32_MIN - 1
+"""An empty action cell (the final state) in the action column."""
+ROW_BYTES = 160
+"""Peak memory per CSV row: five int64 columns, their sorted copies and the trajectories' arrays."""
 
 
 @dataclass
 class CsvDemonstrations:
-    """Parsed trajectories plus where each came from: labels and the CSV line of every (trajectory, step)."""
+    """Parsed trajectories plus where each came from: labels, and the CSV line of every row in trajectory
+    order (trajectory `j` step `t` is ``lines[starts[j] + t]``)."""
 
     trajectories: list[Trajectory]
     labels: list[str]
-    lines: dict[tuple[int, int], int] = field(default_factory=dict)
+    lines: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    starts: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=np.int64))
+
+    def line(self, j: int, step: int) -> int | None:
+        """The CSV line of trajectory `j`'s step `step`, if there is one."""
+        if j >= len(self.labels) or not 0 <= step < self.starts[j + 1] - self.starts[j]:
+            return None
+        return int(self.lines[self.starts[j] + step])
 
     def locate(self, error: InvalidInput) -> Unprocessable:
         """The engine's issues with the CSV line (and trajectory label) added to each message."""
@@ -36,7 +52,7 @@ class CsvDemonstrations:
             if match:
                 j = int(match.group(1))
                 step = int(match.group(3)) if match.group(3) else 0
-                line = self.lines.get((j, step))
+                line = self.line(j, step)
                 where = f"trajectory {self.labels[j]!r}" + (f", CSV line {line}" if line else "")
                 message = f"{message} ({where})"
             items.append({"pointer": issue.pointer, "message": message})
@@ -45,10 +61,14 @@ class CsvDemonstrations:
         )
 
 
-def parse_csv(data: bytes) -> CsvDemonstrations:
-    """Parse an uploaded CSV into trajectories; 422 naming the line of every malformed row."""
+def parse_csv(data: bytes, settings: Settings) -> CsvDemonstrations:
+    """Parse an uploaded CSV into trajectories; 422 naming the line of every malformed row, and before
+    reading if its rows would not fit the per-request memory budget. Rows are kept as typed columns
+    (`ROW_BYTES` each at the peak), never as a Python object per row."""
+    check_csv_memory(data, row_bytes=ROW_BYTES, settings=settings)
     _, rows = csv_rows(data, required=COLUMNS)
-    groups: dict[str, list[tuple[int, int, int | None, int]]] = {}
+    labels: dict[str, int] = {}
+    columns = {name: array("q") for name in ("trajectory", "step", "state", "action", "line")}
     errors: list[tuple[str, str]] = []
     for line, cells in rows:
         parsed = {c: _int_or_none(cells[c]) for c in ("step", "state", "action")}
@@ -63,46 +83,53 @@ def parse_csv(data: bytes) -> CsvDemonstrations:
             if len(errors) >= MAX_ERRORS:
                 break
             continue
-        step, state = parsed["step"], parsed["state"]
-        assert step is not None and state is not None
-        groups.setdefault(cells["trajectory"], []).append((step, state, parsed["action"], line))
+        action = parsed["action"]
+        columns["trajectory"].append(labels.setdefault(cells["trajectory"], len(labels)))
+        columns["step"].append(parsed["step"] or 0)
+        columns["state"].append(parsed["state"] or 0)
+        columns["action"].append(NO_ACTION if action is None else action)
+        columns["line"].append(line)
     if errors:
         raise csv_error(errors)
-    if not groups:
+    if not labels:
         raise csv_error([("/trajectories", "the CSV has no data rows")])
-    return _assemble(groups)
+    arrays = {name: np.frombuffer(column, dtype=np.int64) for name, column in columns.items()}
+    return _assemble(list(labels), arrays)
 
 
-def _assemble(groups: dict[str, list[tuple[int, int, int | None, int]]]) -> CsvDemonstrations:
+def _assemble(labels: list[str], columns: dict[str, np.ndarray]) -> CsvDemonstrations:
     """Order each trajectory's rows by step and check steps are 0, 1, 2, … with actions on all but the last."""
-    out = CsvDemonstrations(trajectories=[], labels=[])
+    order = np.lexsort((columns["step"], columns["trajectory"]))
+    trajectory, step = columns["trajectory"][order], columns["step"][order]
+    state, action, lines = columns["state"][order], columns["action"][order], columns["line"][order]
+    starts = np.searchsorted(trajectory, np.arange(len(labels) + 1))
+    out = CsvDemonstrations(trajectories=[], labels=[], lines=lines, starts=starts)
     errors: list[tuple[str, str]] = []
-    for j, (label, rows) in enumerate(groups.items()):
-        rows.sort()
-        steps = [r[0] for r in rows]
-        if steps != list(range(len(rows))):
-            first_bad = next(k for k, s in enumerate(steps) if s != k)
+    for j, label in enumerate(labels):
+        lo, hi = int(starts[j]), int(starts[j + 1])
+        steps = step[lo:hi]
+        wrong = np.flatnonzero(steps != np.arange(hi - lo))
+        if len(wrong):
+            first_bad = int(wrong[0])
             errors.append(
                 (
                     f"/trajectories/{j}",
                     f"trajectory {label!r}: steps must be 0, 1, 2, … without gaps or repeats; "
-                    f"expected step {first_bad}, found {steps[first_bad]} (CSV line {rows[first_bad][3]})",
+                    f"expected step {first_bad}, found {steps[first_bad]} (CSV line {lines[lo + first_bad]})",
                 )
             )
             continue
-        for t, (_step, _state, action, line) in enumerate(rows[:-1]):
-            if action is None:
-                errors.append(
-                    (
-                        f"/trajectories/{j}/actions/{t}",
-                        f"trajectory {label!r} step {t}: action is empty "
-                        f"but only the final state may omit it (CSV line {line})",
-                    )
+        acts = action[lo:hi]
+        for t in np.flatnonzero(acts[:-1] == NO_ACTION)[:MAX_ERRORS]:
+            errors.append(
+                (
+                    f"/trajectories/{j}/actions/{t}",
+                    f"trajectory {label!r} step {t}: action is empty "
+                    f"but only the final state may omit it (CSV line {lines[lo + t]})",
                 )
+            )
         out.labels.append(label)
-        out.lines |= {(j, t): r[3] for t, r in enumerate(rows)}
-        actions = [r[2] for r in rows if r[2] is not None]
-        out.trajectories.append(Trajectory.of([r[1] for r in rows], actions))
+        out.trajectories.append(Trajectory.of(state[lo:hi], acts[acts != NO_ACTION]))
         if len(errors) >= MAX_ERRORS:
             break
     if errors:

@@ -3,8 +3,8 @@ other fields; every problem a 422 naming the sample (and its CSV line). Force-pl
 
 from __future__ import annotations
 
-import json
 import re
+from array import array
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -16,12 +16,16 @@ from metairl_engine import InvalidInput
 from service.domain.common import UploadFormat
 from service.domain.recordings import FileOptions, RecordingIn
 from service.files.csv_rows import MAX_ERRORS, csv_error, csv_rows
+from service.json_input import nul_pointer, nul_refused, parse_json
 from service.problems import Unprocessable, validation_errors
 
 REQUIRED_COLUMNS = ("t", "x", "y")
 INSTRUCTION_COLUMN = "instruction"
 OBJECT_FIELDS = ("bounds", "grid", "discretise", "segment", "plate", "metadata")
 """Form fields of a file upload that hold a JSON object (the others are plain strings)."""
+SAMPLE_BYTES = 320
+"""Peak memory per sample (CSV row) of an uploaded recording: its columns, then the engine's arrays while it
+is smoothed, binned and cut."""
 SAMPLE_POINTER = re.compile(r"^/samples/(\d+)(/|$)")
 
 
@@ -44,12 +48,12 @@ class Samples:
     """Uploaded sample columns; ``lines`` gives the CSV line of every sample (None for JSON and C3D), ``plate``
     how a force-plate file was read (None for COP samples)."""
 
-    t: list[float]
-    x: list[float]
-    y: list[float]
+    t: Sequence[float]
+    x: Sequence[float]
+    y: Sequence[float]
     instruction: list[str | None] | None
     format: UploadFormat
-    lines: list[int] | None = None
+    lines: Sequence[int] | None = None
     plate: dict[str, Any] | None = None
 
     def located(self, error: InvalidInput) -> Unprocessable:
@@ -74,18 +78,20 @@ def json_samples(body: RecordingIn) -> Samples:
 class CsvColumns:
     """The columns of a CSV upload: numbers by column, the instruction column (if any), each row's line."""
 
-    values: dict[str, list[float]]
+    values: dict[str, Sequence[float]]
     instruction: list[str | None] | None
     lines: list[int]
 
 
 def read_columns(data: bytes, *, required: Sequence[str], optional: Sequence[str] = ()) -> CsvColumns:
     """The numeric columns `required` (and those of `optional` present) and the ``instruction`` column of a
-    CSV; 422 naming the sample (``/samples/k/column``) and line of every cell that is not a number."""
+    CSV, as typed arrays (never a Python float per cell); 422 naming the sample (``/samples/k/column``) and
+    line of every cell that is not a number."""
     present, rows = csv_rows(data, required=required, optional=(*optional, INSTRUCTION_COLUMN))
-    values: dict[str, list[float]] = {c: [] for c in (*required, *optional) if c in present}
+    values: dict[str, array[float]] = {c: array("d") for c in (*required, *optional) if c in present}
     instruction: list[str | None] = []
-    lines: list[int] = []
+    labels: dict[str, str] = {}  # one string object per distinct instruction, however many rows name it
+    lines: list[int] = []  # a list: `force_plates` takes it as one
     errors: list[tuple[str, str]] = []
     for line, cells in rows:
         k = len(lines)
@@ -95,13 +101,14 @@ def read_columns(data: bytes, *, required: Sequence[str], optional: Sequence[str
             except ValueError:
                 column.append(float("nan"))
                 errors.append((f"/samples/{k}/{c}", f"{c} {cells[c]!r} is not a number (CSV line {line})"))
-        instruction.append(cells.get(INSTRUCTION_COLUMN) or None)
+        label = cells.get(INSTRUCTION_COLUMN) or None
+        instruction.append(None if label is None else labels.setdefault(label, label))
         lines.append(line)
         if len(errors) >= MAX_ERRORS:
             break
     if errors:
         raise csv_error(errors)
-    return CsvColumns(values, instruction if INSTRUCTION_COLUMN in present else None, lines)
+    return CsvColumns(dict(values), instruction if INSTRUCTION_COLUMN in present else None, lines)
 
 
 def csv_samples(data: bytes) -> Samples:
@@ -127,13 +134,10 @@ def form_options(form: FormData) -> FileOptions:
         if key not in OBJECT_FIELDS:
             raw[key] = value
             continue
-        try:
-            raw[key] = json.loads(value)
-        except ValueError as exc:
-            raise Unprocessable(
-                f"The form field {key} must be a JSON object.",
-                errors=[{"pointer": f"/{key}", "message": f"is not valid JSON ({exc})"}],
-            ) from exc
+        raw[key] = parse_json(value, pointer=f"/{key}", what=f"The form field {key}")
+        nul = nul_pointer(raw[key], f"/{key}")
+        if nul is not None:
+            raise nul_refused(nul)
     try:
         return FileOptions.model_validate(raw)
     except ValidationError as exc:

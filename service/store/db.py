@@ -30,7 +30,7 @@ _THREAD_LOCK = threading.Lock()
 
 def make_engine(settings: Settings, *, pre_ping: bool = False) -> Engine:
     """An engine for the configured database (SQLite: WAL, foreign keys, busy timeout; PostgreSQL: a pool of
-    `db_pool_size` connections recycled after `db_pool_recycle_s`).
+    `db_pool_size` connections recycled after `db_pool_recycle_s`, waited for at most `db_pool_timeout_s`).
 
     `pre_ping` tests each connection with a round trip when it is checked out: the worker (seconds between
     writes, on long-lived connections) asks for it; the API does not, because it would double the round trips
@@ -54,6 +54,7 @@ def make_engine(settings: Settings, *, pre_ping: bool = False) -> Engine:
         pool_size=settings.db_pool_size,
         max_overflow=settings.db_max_overflow,
         pool_recycle=settings.db_pool_recycle_s,
+        pool_timeout=settings.db_pool_timeout_s,
     )
 
 
@@ -92,6 +93,7 @@ def make_async_engine(settings: Settings, *, pooled: bool = True) -> AsyncEngine
             "pool_size": settings.db_pool_size,
             "max_overflow": settings.db_max_overflow,
             "pool_recycle": settings.db_pool_recycle_s,
+            "pool_timeout": settings.db_pool_timeout_s,
         }
     if sqlite:
         options["connect_args"] = {"timeout": SQLITE_BUSY_TIMEOUT_MS / 1000}
@@ -102,12 +104,14 @@ def make_async_engine(settings: Settings, *, pooled: bool = True) -> AsyncEngine
 
 
 def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
-    """Per-connection SQLite settings: write-ahead log (readers never block the writer), foreign keys on."""
+    """Per-connection SQLite settings: write-ahead log (readers never block the writer), foreign keys on,
+    deleted content overwritten with zeros (a deleted demonstrator's data does not linger in free pages)."""
     cursor = dbapi_connection.cursor()
     cursor.execute("PRAGMA journal_mode=WAL")
     cursor.execute("PRAGMA foreign_keys=ON")
     cursor.execute(f"PRAGMA busy_timeout={SQLITE_BUSY_TIMEOUT_MS}")
     cursor.execute("PRAGMA synchronous=NORMAL")
+    cursor.execute("PRAGMA secure_delete=ON")
     cursor.close()
 
 

@@ -1,7 +1,8 @@
 """Deleting a demonstrator, task, MDP or job with everything derived from it (docs/api.md, "Deleting").
 
-Each function takes a session, deletes rows and the blobs no remaining row refers to, flushes, and never
-commits (the route does). A deletion that would pull the rug from under a queued or running job, or
+Each function takes a session, deletes rows, the blobs no remaining row refers to, the remembered
+`Idempotency-Key` requests that created them and the webhook deliveries of their jobs, flushes, and never
+commits (the route does, with `commit_deletion`, which also checkpoints SQLite's WAL). A deletion that would pull the rug from under a queued or running job, or
 leave a task or recording without its MDP, raises `Conflict` before anything is deleted.
 """
 
@@ -9,16 +10,18 @@ from __future__ import annotations
 
 from collections.abc import Collection, Iterable
 
-from sqlalchemy import delete, select
+from sqlalchemy import Engine, delete, select
 from sqlalchemy.orm import Session
 
 from service.problems import Conflict
 from service.store.models.blobs import Blob
 from service.store.models.demonstrators import Demonstration, Demonstrator, Task, TrueReward
+from service.store.models.idempotency import IdempotentRequest
 from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, JobEvent, Reward
 from service.store.models.mdps import Mdp
 from service.store.models.recordings import Recording
+from service.store.models.webhooks import WebhookDelivery
 
 ACTIVE = (JobStatus.QUEUED.value, JobStatus.RUNNING.value)
 """Statuses of a job whose inputs must not be deleted (and that cannot be deleted itself)."""
@@ -35,6 +38,22 @@ BLOB_COLUMNS = (
     Reward.policy_blob_id,
 )
 """Every column that refers to a blob (MDPs refer to theirs through the JSON `array_blobs`)."""
+
+
+def commit_deletion(session: Session) -> None:
+    """Commit a deletion; on SQLite also checkpoint the WAL so the deleted rows no longer linger in it."""
+    session.commit()
+    bind = session.get_bind()
+    engine = bind if isinstance(bind, Engine) else bind.engine
+    if engine.dialect.name == "sqlite":
+        with engine.connect() as connection:
+            connection.exec_driver_sql("PRAGMA wal_checkpoint(TRUNCATE)")
+
+
+def forget_requests(session: Session, resource_ids: Collection[str]) -> None:
+    """Delete the remembered POSTs that created `resource_ids`, so replaying one cannot answer a deleted id."""
+    if resource_ids:
+        session.execute(delete(IdempotentRequest).where(IdempotentRequest.resource_id.in_(resource_ids)))
 
 
 def delete_job(session: Session, job: Job) -> None:
@@ -76,6 +95,7 @@ def delete_demonstrator(session: Session, demonstrator: Demonstrator) -> None:
     task_ids = list(session.execute(select(Task.id).where(Task.demonstrator_id == demonstrator.id)).scalars())
     _delete_tasks(session, task_ids, also_blobs=[b for r in recordings for b in (r[1], r[2])])
     session.execute(delete(Demonstrator).where(Demonstrator.id == demonstrator.id))
+    forget_requests(session, [demonstrator.id, *(r.id for r in recordings)])
     session.flush()
 
 
@@ -91,6 +111,7 @@ def delete_mdp(session: Session, mdp: Mdp) -> None:
         )
     blobs = list(mdp.array_blobs.values())
     session.execute(delete(Mdp).where(Mdp.id == mdp.id))
+    forget_requests(session, [mdp.id])
     session.flush()
     _delete_unreferenced_blobs(session, blobs, lab_id=mdp.lab_id)
 
@@ -126,6 +147,8 @@ def _delete_jobs(session: Session, job_ids: Collection[str]) -> None:
     ]
     session.execute(delete(Reward).where(Reward.job_id.in_(job_ids)))
     session.execute(delete(JobEvent).where(JobEvent.job_id.in_(job_ids)))
+    session.execute(delete(WebhookDelivery).where(WebhookDelivery.job_id.in_(job_ids)))
+    forget_requests(session, job_ids)
     # Conditional: a job re-queued by the reaper since we looked is not deleted (and the whole request fails).
     deleted = session.execute(
         delete(Job)
@@ -156,6 +179,10 @@ def _delete_tasks(
             session.execute(select(TrueReward.blob_id).where(TrueReward.task_id.in_(task_ids))).scalars()
         )
         session.execute(delete(Reward).where(Reward.task_id.in_(task_ids)))
+        demonstration_ids = session.execute(
+            select(Demonstration.id).where(Demonstration.task_id.in_(task_ids))
+        ).scalars()
+        forget_requests(session, [*task_ids, *demonstration_ids])
         session.execute(delete(Demonstration).where(Demonstration.task_id.in_(task_ids)))
         session.execute(delete(TrueReward).where(TrueReward.task_id.in_(task_ids)))
         session.execute(delete(Task).where(Task.id.in_(task_ids)))

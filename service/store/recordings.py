@@ -20,7 +20,7 @@ import numpy as np
 from sqlalchemy import select, update
 from sqlalchemy.orm import Session
 
-from metairl_engine import InvalidInput
+from metairl_engine import InvalidInput, Issue
 from metairl_engine.demos import Trajectory
 from metairl_engine.grids import DIRECTION_NAMES
 from metairl_engine.motion.recording import (
@@ -167,6 +167,25 @@ def lock_demonstrator(session: Session, demonstrator_id: str) -> None:
     session.execute(update(Demonstrator).where(Demonstrator.id == demonstrator_id).values(id=Demonstrator.id))
 
 
+def _check_windows(rec: Recording, windows: dict[str, float]) -> None:
+    """422 for a smoothing window (pointer: seconds) spanning more samples than the recording has: it would
+    smooth nothing useful and its padding would take memory in proportion (1e308 overflowed)."""
+    if len(rec.t) < 2:
+        return
+    issues = []
+    for pointer, seconds in windows.items():
+        span = seconds * rec.sample_rate
+        if not span <= len(rec.t):
+            issues.append(
+                Issue(
+                    pointer,
+                    f"spans {span:.3g} samples, more than the recording's {len(rec.t)}; use a shorter window",
+                )
+            )
+    if issues:
+        raise InvalidInput(issues)
+
+
 def add_recording(
     session: Session, demonstrator: Demonstrator, options: RecordingOptions, samples: Samples
 ) -> RecordingRow:
@@ -188,6 +207,9 @@ def add_recording(
     try:
         rec = Recording.build(
             t=samples.t, x=samples.x, y=samples.y, bounds=options.bounds, instruction=samples.instruction
+        )
+        _check_windows(
+            rec, {"/discretise/smooth_s": discretise.smooth_s, "/segment/smooth_s": options.segment.smooth_s}
         )
         cut = demonstrations(rec, discretise_settings=discretise, segment_settings=options.segment)
     except InvalidInput as exc:

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from sqlalchemy import select
+from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
+from service.store.deletion import forget_requests
 from service.store.ids import new_id
 from service.store.models.webhooks import Webhook, WebhookDelivery
 from service.store.owned import get_owned
@@ -27,6 +28,11 @@ def get_webhook(session: Session, webhook_id: str, *, lab_id: str) -> Webhook:
     return get_owned(session, Webhook, webhook_id, lab_id=lab_id, what="webhook")
 
 
+def count_webhooks(session: Session, *, lab_id: str) -> int:
+    """How many webhooks the lab has."""
+    return session.execute(select(func.count()).where(Webhook.lab_id == lab_id)).scalar_one()
+
+
 def list_webhooks(session: Session, *, lab_id: str, page: PageParams) -> RowPage[Webhook]:
     """One page of the lab's webhooks, newest first."""
     query = select(Webhook).where(Webhook.lab_id == lab_id)
@@ -34,7 +40,8 @@ def list_webhooks(session: Session, *, lab_id: str, page: PageParams) -> RowPage
 
 
 def delete_webhook(session: Session, webhook: Webhook) -> None:
-    """Delete the webhook and its deliveries (pending ones are never sent)."""
+    """Delete the webhook and its deliveries (pending ones are never sent) and forget the POST that made it."""
+    forget_requests(session, [webhook.id])
     session.delete(webhook)
     session.flush()
 

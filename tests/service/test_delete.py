@@ -4,16 +4,23 @@ MDP is used; another lab gets 404 (and `test_isolation` checks that for every ro
 
 from __future__ import annotations
 
+import secrets
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 from sqlalchemy import func, select
 
 from metairl_engine.sim.patient import PatientSettings, simulate_patient
+from service.jobs.transitions import cancel
+from service.settings import Settings
 from service.store.models import Base
-from tests.service.helpers import add_demonstrations, created, fitted_job, make_mdp, make_task
+from service.store.models.jobs import Job
+from service.store.models.webhooks import WebhookDelivery
+from tests.service.helpers import PUBLIC_HOOK, add_demonstrations, created, fitted_job, make_mdp, make_task
 
 RIGHT = [{"states": [0, 1, 2], "actions": [1, 1]}]
 LEFT = [{"states": [2, 1, 0], "actions": [0, 0]}]
@@ -194,3 +201,35 @@ def test_delete_routes_are_documented(app: FastAPI) -> None:
     ):
         responses = paths[path]["delete"]["responses"]
         assert {"204", "404", "409"} <= set(responses), (path, responses)
+
+
+def test_a_deleted_demonstrator_leaves_no_trace_in_sqlite_files(
+    backend: str, settings: Settings, client: TestClient, auth: dict[str, str]
+) -> None:
+    if backend != "sqlite":
+        pytest.skip("SQLite's files only")
+    marker = f"withdrawn-{secrets.token_hex(8)}"
+    demonstrator = created(client.post("/v1/demonstrators", json={"name": marker}, headers=auth))
+    path = Path(str(settings.database_url).removeprefix("sqlite:///"))
+    files = [path, path.with_name(path.name + "-wal")]
+    assert any(marker.encode() in f.read_bytes() for f in files if f.exists())
+    assert client.delete(f"/v1/demonstrators/{demonstrator['id']}", headers=auth).status_code == 204
+    assert not any(marker.encode() in f.read_bytes() for f in files if f.exists())
+
+
+def test_deleting_a_job_drops_its_webhook_deliveries(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    created(client.post("/v1/webhooks", json={"url": PUBLIC_HOOK}, headers=auth))
+    task = make_task(client, auth)
+    add_demonstrations(client, auth, task["id"], RIGHT)
+    job = created(
+        client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
+    )
+    with app.state.sessionmaker() as session:
+        cancel(session, session.get_one(Job, job["id"]))
+        session.commit()
+        assert session.execute(select(WebhookDelivery).where(WebhookDelivery.job_id == job["id"])).first()
+    assert client.delete(f"/v1/jobs/{job['id']}", headers=auth).status_code == 204
+    with app.state.sessionmaker() as session:
+        assert not session.execute(select(WebhookDelivery).where(WebhookDelivery.job_id == job["id"])).first()

@@ -2,18 +2,26 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
+import time
+from collections.abc import Iterator
 from datetime import UTC, datetime
 from typing import Any
 
+import httpx
+import pytest
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
+from service.api.app import create_app
 from service.jobs.transitions import claim, transition
+from service.settings import Settings
 from service.store.models.base import utcnow
 from service.store.models.job_status import JobStatus
 from service.store.models.jobs import JobEvent
 from tests.service.helpers import add_demonstrations, created, make_task
+from tests.service.live import serving
 
 SSE = {"Accept": "text/event-stream"}
 
@@ -240,3 +248,98 @@ def test_client_wait_on_a_running_job_does_not_draw_the_history_its_snapshot_alr
         ("progress", {"attempt": 3, "step": 1}),
     ]
     assert not any(snapshot.already_shows(kind, data) for kind, data in news)
+
+
+def running_job(app: FastAPI, client: TestClient, auth: dict[str, str]) -> str:
+    """A job a worker claimed and that has not ended (its stream stays open)."""
+    task = make_task(client, auth)
+    add_demonstrations(client, auth, task["id"])
+    job_id = created(
+        client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
+    )["id"]
+    with app.state.sessionmaker() as session:
+        claim(session, job_id)
+        session.commit()
+    return str(job_id)
+
+
+@contextlib.contextmanager
+def small_pool_app(settings: Settings, **overrides: Any) -> Iterator[FastAPI]:
+    """The app on a PostgreSQL pool of 2 connections (no overflow) waited for at most 2 s, polling fast."""
+    values = {"db_pool_size": 2, "db_max_overflow": 0, "db_pool_timeout_s": 2.0, "events_poll_s": 0.1}
+    app = create_app(settings.model_copy(update=values | overrides))
+    try:
+        yield app
+    finally:
+        app.state.engine.dispose()
+
+
+@contextlib.contextmanager
+def open_streams(
+    http: httpx.Client, url: str, n: int, auth: dict[str, str]
+) -> Iterator[list[httpx.Response]]:
+    """`n` event streams of `url` held open (their headers received) until the block ends."""
+    with contextlib.ExitStack() as stack:
+        yield [stack.enter_context(http.stream("GET", url, headers=auth | SSE)) for _ in range(n)]
+
+
+def test_open_event_streams_hold_no_database_connection(
+    backend: str, settings: Settings, api_key: str
+) -> None:
+    if backend != "postgres":
+        pytest.skip("the connection pool is PostgreSQL's")
+    auth = {"Authorization": f"Bearer {api_key}"}
+    with small_pool_app(settings) as app, TestClient(app) as client:
+        job_id = running_job(app, client, auth)
+        with (
+            serving(app) as url,
+            httpx.Client(base_url=url, timeout=10) as http,
+            open_streams(http, f"/v1/jobs/{job_id}/events", 6, auth) as streams,
+        ):
+            assert [s.status_code for s in streams] == [200] * 6
+            for _ in range(5):
+                started = time.monotonic()
+                assert http.get("/v1/mdps", headers=auth).status_code == 200
+                assert time.monotonic() - started < 1.0
+
+
+def test_a_key_holds_at_most_the_configured_number_of_streams(
+    settings: Settings, api_key: str, api_key_b: str
+) -> None:
+    auth, auth_b = {"Authorization": f"Bearer {api_key}"}, {"Authorization": f"Bearer {api_key_b}"}
+    app = create_app(settings.model_copy(update={"events_max_streams_per_key": 2, "events_poll_s": 0.1}))
+    try:
+        with TestClient(app) as client:
+            job_id = running_job(app, client, auth)
+            other_job = running_job(app, client, auth_b)
+            with serving(app) as url, httpx.Client(base_url=url, timeout=10) as http:
+                path = f"/v1/jobs/{job_id}/events"
+                with open_streams(http, path, 2, auth):
+                    refused = http.get(path, headers=auth | SSE)
+                    assert refused.status_code == 429 and int(refused.headers["retry-after"]) >= 1
+                    assert "METAIRL_EVENTS_MAX_STREAMS_PER_KEY" in refused.json()["detail"]
+                    with open_streams(http, f"/v1/jobs/{other_job}/events", 1, auth_b) as other:
+                        assert other[0].status_code == 200
+                deadline = time.monotonic() + 10
+                while True:  # the closed streams give their slots back once the server notices
+                    with http.stream("GET", path, headers=auth | SSE) as again:
+                        if again.status_code == 200:
+                            break
+                    assert time.monotonic() < deadline, "the closed streams' slots were not given back"
+                    time.sleep(0.1)
+    finally:
+        app.state.engine.dispose()
+
+
+def test_a_request_finding_every_connection_busy_is_503(
+    backend: str, settings: Settings, api_key: str
+) -> None:
+    if backend != "postgres":
+        pytest.skip("the connection pool is PostgreSQL's")
+    auth = {"Authorization": f"Bearer {api_key}"}
+    with small_pool_app(settings, db_pool_timeout_s=0.5) as app, TestClient(app) as client:
+        with app.state.engine.connect(), app.state.engine.connect():
+            response = client.get("/v1/mdps", headers=auth)
+        assert response.status_code == 503 and response.headers["retry-after"] == "1"
+        assert response.headers["content-type"].startswith("application/problem+json")
+        assert client.get("/v1/mdps", headers=auth).status_code == 200

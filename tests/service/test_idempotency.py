@@ -6,7 +6,9 @@ from __future__ import annotations
 import secrets
 from datetime import timedelta
 
+import httpx
 import pytest
+from fastapi import FastAPI
 from fastapi.testclient import TestClient
 from sqlalchemy import select, update
 
@@ -17,6 +19,7 @@ from service.settings import Settings
 from service.store.models.base import utcnow
 from service.store.models.idempotency import IdempotentRequest
 from tests.service.helpers import CORRIDOR_NEXT_STATE, make_task
+from tests.service.live import serving
 
 
 def count_demonstrators(client: TestClient, auth: dict[str, str]) -> int:
@@ -178,3 +181,28 @@ def test_only_the_request_holding_a_claim_renews_records_or_releases_it(
     assert renewed is not None and renewed > utcnow()
     retry = client.post("/v1/demonstrators", json={"name": "p"}, headers=headers)
     assert retry.status_code == 409  # renewed: its request is alive
+
+
+def test_a_retry_sent_as_soon_as_the_answer_arrives_is_replayed(app: FastAPI, auth: dict[str, str]) -> None:
+    with serving(app) as url, httpx.Client(base_url=url, headers=auth) as http:
+        statuses = []
+        for attempt in range(200):
+            headers = {"Idempotency-Key": f"race-{attempt}"}
+            first = http.post("/v1/demonstrators", json={"name": "p"}, headers=headers)
+            again = http.post("/v1/demonstrators", json={"name": "p"}, headers=headers)
+            assert first.status_code == 201, first.text
+            statuses.append(again.status_code)
+            assert again.status_code != 201 or again.json()["id"] == first.json()["id"]
+    assert statuses.count(409) == 0 and set(statuses) == {201}
+
+
+def test_replaying_the_post_of_a_deleted_demonstrator_creates_anew(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    headers = auth | {"Idempotency-Key": "made-then-deleted"}
+    first = client.post("/v1/demonstrators", json={"name": "p"}, headers=headers)
+    assert client.delete(f"/v1/demonstrators/{first.json()['id']}", headers=auth).status_code == 204
+    again = client.post("/v1/demonstrators", json={"name": "p"}, headers=headers)
+    assert again.status_code == 201 and "idempotent-replayed" not in again.headers
+    assert again.json()["id"] != first.json()["id"]
+    assert client.get(f"/v1/demonstrators/{again.json()['id']}", headers=auth).status_code == 200

@@ -15,7 +15,7 @@ from standardwebhooks.webhooks import WebhookVerificationError
 
 from service.api.app import create_app
 from service.jobs.transitions import claim, transition
-from service.jobs.webhooks import sign
+from service.jobs.webhooks import private_address, sign
 from service.settings import Settings
 from service.store.models.job_status import JobStatus
 from service.store.models.webhooks import WebhookDelivery
@@ -132,3 +132,53 @@ def test_a_delivery_is_written_with_the_final_status_and_its_signature_verifies(
     assert Verifier(wanted["secret"]).verify(body, headers) == payload
     with pytest.raises(WebhookVerificationError):
         Verifier(wanted["secret"]).verify(body + b" ", headers)
+
+
+@pytest.mark.parametrize(
+    "url",
+    [
+        "http://[::127.0.0.1]/hook",  # IPv4-compatible
+        "http://[::ffff:127.0.0.1]/hook",  # IPv4-mapped
+        "http://[64:ff9b::7f00:1]/hook",  # NAT64 of 127.0.0.1
+        "http://[64:ff9b::a9fe:a9fe]/hook",  # NAT64 of 169.254.169.254
+        "http://[64:ff9b:1::1]/hook",  # local-use NAT64
+        "http://[2002:7f00:1::]/hook",  # 6to4 of 127.0.0.1
+        "http://[2002:a9fe:a9fe::]/hook",  # 6to4 of 169.254.169.254
+        "http://[fec0::1]/hook",  # site-local
+        "http://[2001::1]/hook",  # Teredo
+        "http://[fd00::1]/hook",  # unique local
+        "http://[100::1]/hook",  # discard-only
+    ],
+)
+def test_special_use_ipv6_targets_are_refused(client: TestClient, auth: dict[str, str], url: str) -> None:
+    response = client.post("/v1/webhooks", json={"url": url}, headers=auth)
+    assert response.status_code == 422, response.text
+    assert "special-use" in response.json()["errors"][0]["message"]
+
+
+@pytest.mark.parametrize(
+    "address", ["64:ff9b::808:808", "2002:808:808::1", "2606:4700:4700::1111", "::ffff:8.8.8.8", "8.8.8.8"]
+)
+def test_public_addresses_and_those_embedding_one_are_allowed(address: str) -> None:
+    assert not private_address(address)
+
+
+def test_a_lab_has_at_most_the_configured_number_of_webhooks(settings: Settings) -> None:
+    from tests.conftest import _new_key
+
+    app = create_app(settings.model_copy(update={"webhook_max_per_lab": 3}))
+    try:
+        with TestClient(app) as client:
+            auth = {"Authorization": f"Bearer {_new_key(app, 'lab-hooks')}"}
+            other = {"Authorization": f"Bearer {_new_key(app, 'lab-other')}"}
+            hooks = [
+                created(client.post("/v1/webhooks", json={"url": PUBLIC_HOOK}, headers=auth))
+                for _ in range(3)
+            ]
+            refused = client.post("/v1/webhooks", json={"url": PUBLIC_HOOK}, headers=auth)
+            assert refused.status_code == 409 and "METAIRL_WEBHOOK_MAX_PER_LAB" in refused.json()["detail"]
+            created(client.post("/v1/webhooks", json={"url": PUBLIC_HOOK}, headers=other))
+            assert client.delete(f"/v1/webhooks/{hooks[0]['id']}", headers=auth).status_code == 204
+            created(client.post("/v1/webhooks", json={"url": PUBLIC_HOOK}, headers=auth))
+    finally:
+        app.state.engine.dispose()

@@ -55,7 +55,7 @@ async def add_demonstrations(
     kind = media_type(request)
     if kind == "multipart/form-data":
         _form, upload = await form_body(request)
-        parsed = parse_csv(await upload.read())
+        parsed = await run_in_threadpool(parse_csv, await upload.read(), request.app.state.settings)
         try:
             created = await run_in_threadpool(
                 demonstrations.add_demonstrations, session, task, parsed.trajectories, fmt="csv"

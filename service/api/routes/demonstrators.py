@@ -11,6 +11,7 @@ from service.api.pagination import Page, PageDep
 from service.api.responses import DELETED
 from service.domain.demonstrators import DemonstratorIn, DemonstratorOut
 from service.store import demonstrators
+from service.store.deletion import commit_deletion
 from service.store.deletion import delete_demonstrator as delete_demonstrator_rows
 
 router = APIRouter(tags=["demonstrators"], responses=PROBLEM_RESPONSES)
@@ -51,5 +52,5 @@ def delete_demonstrator(demonstrator_id: str, lab: LabDep, session: SessionDep) 
     learned rewards, with their stored arrays (e.g. when a patient withdraws consent); 409 while one of
     its jobs is queued or running (cancel it first)."""
     delete_demonstrator_rows(session, demonstrators.get_demonstrator(session, demonstrator_id, lab_id=lab.id))
-    session.commit()
+    commit_deletion(session)
     return Response(status_code=status.HTTP_204_NO_CONTENT)

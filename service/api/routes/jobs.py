@@ -10,6 +10,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Header, Query, Request, Response, status
 from fastapi.responses import StreamingResponse
+from starlette.background import BackgroundTask
 
 from service.api.auth import BearerDep, authorised_row
 from service.api.deps import JobDep, LabDep, QueueDep, SessionDep, SettingsDep
@@ -23,8 +24,8 @@ from service.jobs.submit import create_job
 from service.jobs.transitions import cancel
 from service.problems import BROKER_RETRY_AFTER_S, BrokerUnavailable
 from service.store import jobs
+from service.store.deletion import commit_deletion, discard_unsent_job
 from service.store.deletion import delete_job as delete_job_rows
-from service.store.deletion import discard_unsent_job
 from service.store.models.job_status import JobStatus
 from service.store.owned import not_found
 
@@ -126,16 +127,21 @@ def list_events(
     """
     if not wants_stream(accept):
         return Page[JobEventOut].of(jobs.list_events(session, job, page=page), JobEventOut.of)
+    session.close()  # the stream reads with a session per poll: hold no connection while it is open
     settings = request.app.state.settings
+    slot = request.app.state.stream_slots.take(request.headers.get("authorization", ""))
     stream = job_events(
         request.app.state.sessionmaker,
         job.id,
         after_id=parse_last_event_id(last_event_id),
         poll_s=settings.events_poll_s,
         max_s=settings.events_stream_max_s,
+        slot=slot,
     )
     headers = {"Cache-Control": "no-cache", "X-Accel-Buffering": "no"}
-    return StreamingResponse(stream, media_type=MEDIA_TYPE, headers=headers)
+    return StreamingResponse(
+        stream, media_type=MEDIA_TYPE, headers=headers, background=BackgroundTask(slot.release)
+    )
 
 
 @router.post(
@@ -162,5 +168,5 @@ def delete_job(job: JobDep, session: SessionDep) -> Response:
     """Removes a finished job with its events and learned rewards (values, policies) and their stored
     arrays; 409 while it is queued or running (cancel it first)."""
     delete_job_rows(session, job)
-    session.commit()
+    commit_deletion(session)
     return Response(status_code=status.HTTP_204_NO_CONTENT)

@@ -28,8 +28,9 @@ from service.domain.mdps import (
 from service.files.npz import npz_headers, read_npz, write_npz
 from service.problems import Unprocessable
 from service.settings import Settings
-from service.sizes import check_mdp_size
+from service.sizes import check_grid, check_mdp_size
 from service.store import mdps
+from service.store.deletion import commit_deletion
 from service.store.deletion import delete_mdp as delete_mdp_rows
 from service.store.loaders import load_mdp
 
@@ -92,6 +93,15 @@ async def create_mdp(
             mdp = await run_in_threadpool(mdps.build_explicit, body)
             grid = None
         else:
+            check_grid(
+                width=body.width,
+                height=body.height,
+                moves=body.moves or (8 if body.velocity else 4),
+                stay=body.stay,
+                slip=body.slip,
+                velocity=body.velocity,
+                settings=settings,
+            )
             mdp, grid = await run_in_threadpool(mdps.build_grid, body)
         check_mdp_size(
             mdp.n_states,
@@ -215,7 +225,7 @@ def delete_mdp(mdp_id: str, lab: LabDep, session: SessionDep) -> Response:
     """Removes the MDP and its stored arrays; 409 while a task or recording still uses it (delete those
     first)."""
     delete_mdp_rows(session, mdps.get_mdp(session, mdp_id, lab_id=lab.id))
-    session.commit()
+    commit_deletion(session)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 

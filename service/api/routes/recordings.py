@@ -26,8 +26,9 @@ from service.domain.recordings import (
     RecordingOptions,
     RecordingOut,
 )
+from service.files.csv_rows import check_csv_memory
 from service.files.force_plates import file_samples
-from service.files.recording_samples import form_options, json_samples
+from service.files.recording_samples import SAMPLE_BYTES, form_options, json_samples
 from service.results.downloads import Download
 from service.store import recordings
 from service.store.demonstrators import get_demonstrator
@@ -110,8 +111,10 @@ async def upload_recording(
     if kind == "multipart/form-data":
         form, upload = await form_body(request)
         options = form_options(form)
+        data = await upload.read()
+        check_csv_memory(data, row_bytes=SAMPLE_BYTES, settings=request.app.state.settings)
         samples = await run_in_threadpool(
-            file_samples, upload.filename, await upload.read(), options.plate, options.protocol
+            file_samples, upload.filename, data, options.plate, options.protocol
         )
     elif kind == "application/json":
         body = await json_body(request, RECORDING_IN)

@@ -13,6 +13,7 @@ from service.domain.tasks import TaskIn, TaskOut, TrueRewardIn, TrueRewardOut
 from service.problems import NotFound
 from service.store import tasks
 from service.store.blobs import blob_sha256, get_array
+from service.store.deletion import commit_deletion
 from service.store.deletion import delete_task as delete_task_rows
 from service.store.demonstrators import get_demonstrator
 
@@ -58,7 +59,7 @@ def delete_task(task_id: str, lab: LabDep, session: SessionDep) -> Response:
     """Removes the task, its demonstrations and true reward, and every job that fitted it (with their
     events and learned rewards), with their stored arrays; 409 while such a job is queued or running."""
     delete_task_rows(session, tasks.get_task(session, task_id, lab_id=lab.id))
-    session.commit()
+    commit_deletion(session)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 

@@ -15,8 +15,9 @@ from service.api.openapi import PROBLEM_RESPONSES
 from service.api.pagination import Page, PageDep
 from service.domain.webhooks import WebhookCreated, WebhookIn, WebhookOut
 from service.jobs.webhooks import check_target, new_secret
-from service.problems import Unprocessable
+from service.problems import Conflict, Unprocessable
 from service.store import webhooks
+from service.store.deletion import commit_deletion
 
 router = APIRouter(tags=["webhooks"], responses=PROBLEM_RESPONSES)
 
@@ -27,13 +28,21 @@ NO_SUCH_WEBHOOK: dict[int | str, dict[str, Any]] = {404: {"description": "No suc
     "/webhooks",
     status_code=status.HTTP_201_CREATED,
     summary="Subscribe a URL to job endings",
-    responses={422: {"description": "Not an http(s) URL, a private target, or an unknown event."}},
+    responses={
+        409: {"description": "The lab already has the most webhooks allowed (problem+json)."},
+        422: {"description": "Not an http(s) URL, a private target, or an unknown event."},
+    },
 )
 def create_webhook(
     body: WebhookIn, response: Response, session: SessionDep, lab: LabDep, settings: SettingsDep
 ) -> WebhookCreated:
     """Each time one of the lab's jobs ends as one of `events`, POST `{"type", "data": <the job>}` to `url`,
     signed with the returned `secret` (shown only now) per the Standard Webhooks spec."""
+    if webhooks.count_webhooks(session, lab_id=lab.id) >= settings.webhook_max_per_lab:
+        raise Conflict(
+            f"Your lab already has {settings.webhook_max_per_lab} webhooks, the most allowed "
+            "(METAIRL_WEBHOOK_MAX_PER_LAB); delete one first."
+        )
     problem = check_target(body.url, allow_private=settings.webhook_allow_private)
     if problem is not None:
         raise Unprocessable(
@@ -69,5 +78,5 @@ def read_webhook(webhook_id: str, session: SessionDep, lab: LabDep) -> WebhookOu
 def delete_webhook(webhook_id: str, session: SessionDep, lab: LabDep) -> Response:
     """Stop calling the URL; deliveries not yet sent are dropped."""
     webhooks.delete_webhook(session, webhooks.get_webhook(session, webhook_id, lab_id=lab.id))
-    session.commit()
+    commit_deletion(session)
     return Response(status_code=status.HTTP_204_NO_CONTENT)

@@ -25,6 +25,8 @@ class IdempotentRequest(CreatedAtMixin, Base):
     body: Mapped[bytes | None] = mapped_column(LargeBinary)
     claim: Mapped[str | None] = mapped_column(String(32))
     """Random id of the request holding a running claim: only that request renews, records or releases it."""
+    resource_id: Mapped[str | None] = mapped_column(String(ID_LENGTH), index=True)
+    """The ``id`` of what a successful request created: deleting that forgets the request (no replay of it)."""
     leased_until: Mapped[datetime | None] = mapped_column(UTCDateTime())
     """While running, when the claim lapses unless its request renews it (null: lapsed); a retry with the
     same key and body then takes the claim over."""

@@ -11,7 +11,7 @@ import sqlalchemy as sa
 from alembic import op
 
 revision = "0009_standing"
-down_revision = "0007"
+down_revision = "0008_reliability"
 branch_labels = None
 depends_on = None
 
