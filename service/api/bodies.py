@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from fastapi import Request
@@ -73,6 +74,25 @@ async def form_body(request: Request) -> tuple[FormData, UploadFile]:
     if not files:
         raise validation_errors([{"loc": ("file",), "msg": "a file part is required"}], None)
     return form, files[0]
+
+
+@dataclass(frozen=True)
+class Upload:
+    """A multipart body: its form fields and its one file."""
+
+    form: FormData
+    file: UploadFile
+
+
+async def json_or_upload(request: Request, adapter: TypeAdapter[T], *, accepted: str) -> T | Upload:
+    """The body of a route that takes JSON or a file: JSON validated by ``adapter``, or the multipart form with
+    its file (`form_body`); 415 naming ``accepted`` for any other media type."""
+    kind = media_type(request)
+    if kind == "multipart/form-data":
+        return Upload(*await form_body(request))
+    if kind == "application/json":
+        return await json_body(request, adapter)
+    raise unsupported(request, accepted=accepted)
 
 
 def unsupported(request: Request, *, accepted: str) -> UnsupportedMediaType:

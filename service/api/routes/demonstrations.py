@@ -8,7 +8,7 @@ from starlette.concurrency import run_in_threadpool
 
 from metairl_engine import InvalidInput, Trajectory
 from service.api.auth import LabDep
-from service.api.bodies import form_body, json_body, media_type, unsupported
+from service.api.bodies import Upload, json_or_upload
 from service.api.deps import SessionDep
 from service.api.openapi import PROBLEM_RESPONSES, request_body
 from service.api.pagination import Page, PageDep
@@ -52,18 +52,16 @@ async def add_demonstrations(
 ) -> DemonstrationOut:
     """Validate and append one batch of trajectories."""
     task = await run_in_threadpool(get_task, session, task_id, lab_id=lab.id)
-    kind = media_type(request)
-    if kind == "multipart/form-data":
-        _form, upload = await form_body(request)
-        parsed = await run_in_threadpool(parse_csv, await upload.read(), request.app.state.settings)
+    body = await json_or_upload(request, DEMOS_IN, accepted="application/json or multipart/form-data (CSV)")
+    if isinstance(body, Upload):
+        parsed = await run_in_threadpool(parse_csv, await body.file.read(), request.app.state.settings)
         try:
             created = await run_in_threadpool(
                 demonstrations.add_demonstrations, session, task, parsed.trajectories, fmt="csv"
             )
         except InvalidInput as exc:
             raise parsed.locate(exc) from exc
-    elif kind == "application/json":
-        body = await json_body(request, DEMOS_IN)
+    else:
         trajectories = [Trajectory.of(t.states, t.actions) for t in body.trajectories]
         try:
             created = await run_in_threadpool(
@@ -71,8 +69,6 @@ async def add_demonstrations(
             )
         except InvalidInput as exc:
             raise from_invalid_input(exc, detail="The demonstrations are invalid.") from exc
-    else:
-        raise unsupported(request, accepted="application/json or multipart/form-data (CSV)")
     await run_in_threadpool(session.commit)
     response.headers["Location"] = f"/v1/tasks/{task.id}/demonstrations"
     return DemonstrationOut.of(created)

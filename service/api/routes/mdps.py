@@ -11,7 +11,7 @@ from starlette.datastructures import FormData, UploadFile
 
 from metairl_engine import MDP, Layout
 from service.api.auth import LabDep
-from service.api.bodies import form_body, json_body, media_type, unsupported
+from service.api.bodies import Upload, json_or_upload
 from service.api.deps import SessionDep, SettingsDep
 from service.api.openapi import PROBLEM_RESPONSES, request_body
 from service.api.pagination import Page, PageDep
@@ -80,15 +80,13 @@ async def create_mdp(
 
     Size limits (`METAIRL_MAX_STATE_ACTIONS`, `METAIRL_MAX_FEATURES`, `METAIRL_MAX_ARRAY_ELEMENTS`) are a 422
     naming the setting; an `.npz` is checked from its members' headers before any array is read."""
-    kind = media_type(request)
-    if kind == "multipart/form-data":
-        form, upload = await form_body(request)
-        mdp = await run_in_threadpool(_mdp_from_upload, form, upload, settings)
+    body = await json_or_upload(request, MDP_IN, accepted="application/json or multipart/form-data")
+    if isinstance(body, Upload):
+        mdp = await run_in_threadpool(_mdp_from_upload, body.form, body.file, settings)
         created = await run_in_threadpool(
-            mdps.create_mdp, session, lab_id=lab.id, name=_form_name(form), source="npz", mdp=mdp
+            mdps.create_mdp, session, lab_id=lab.id, name=_form_name(body.form), source="npz", mdp=mdp
         )
-    elif kind == "application/json":
-        body = await json_body(request, MDP_IN)
+    else:
         if isinstance(body, ExplicitMdpIn):
             mdp = await run_in_threadpool(mdps.build_explicit, body)
             grid = None
@@ -113,8 +111,6 @@ async def create_mdp(
         created = await run_in_threadpool(
             mdps.create_mdp, session, lab_id=lab.id, name=body.name, source=body.kind, mdp=mdp, grid=grid
         )
-    else:
-        raise unsupported(request, accepted="application/json or multipart/form-data")
     await run_in_threadpool(session.commit)
     response.headers["Location"] = f"/v1/mdps/{created.id}"
     return MdpOut.of(created, mdps.array_blobs(session, [created]))

@@ -13,7 +13,7 @@ from pydantic import TypeAdapter
 from starlette.concurrency import run_in_threadpool
 
 from service.api.auth import LabDep
-from service.api.bodies import form_body, json_body, media_type, unsupported
+from service.api.bodies import Upload, json_or_upload
 from service.api.deps import SessionDep
 from service.api.openapi import PROBLEM_RESPONSES, request_body
 from service.api.pagination import Page, PageDep
@@ -106,21 +106,19 @@ async def upload_recording(
 ) -> RecordingOut:
     """Parse the body, then validate, cut and store it in one transaction."""
     demonstrator = await run_in_threadpool(get_demonstrator, session, demonstrator_id, lab_id=lab.id)
-    kind = media_type(request)
+    body = await json_or_upload(
+        request, RECORDING_IN, accepted="application/json or multipart/form-data (a CSV or C3D file)"
+    )
     options: RecordingOptions
-    if kind == "multipart/form-data":
-        form, upload = await form_body(request)
-        options = form_options(form)
-        data = await upload.read()
+    if isinstance(body, Upload):
+        options = form_options(body.form)
+        data = await body.file.read()
         check_csv_memory(data, row_bytes=SAMPLE_BYTES, settings=request.app.state.settings)
         samples = await run_in_threadpool(
-            file_samples, upload.filename, data, options.plate, options.protocol
+            file_samples, body.file.filename, data, options.plate, options.protocol
         )
-    elif kind == "application/json":
-        body = await json_body(request, RECORDING_IN)
-        options, samples = body, json_samples(body)
     else:
-        raise unsupported(request, accepted="application/json or multipart/form-data (a CSV or C3D file)")
+        options, samples = body, json_samples(body)
     created = await run_in_threadpool(recordings.add_recording, session, demonstrator, options, samples)
     await run_in_threadpool(session.commit)
     response.headers["Location"] = f"/v1/demonstrators/{demonstrator.id}/recordings"
