@@ -2,11 +2,11 @@
 of schemathesis's checks (status codes, content types, headers and bodies against the documented responses,
 not only server errors).
 
-The app runs on SQLite with the fuzzer's lab holding one resource of every kind; a path parameter naming a
+The app runs on SQLite and on PostgreSQL with the fuzzer's lab holding one resource of every kind; a path parameter naming a
 resource gets that resource's id, so generated bodies reach the validation behind the lookups instead of
 stopping at a 404. Each operation gets `FUZZ_EXAMPLES` requests, schema-valid and schema-violating mixed;
-then the stateful phase chains calls along the links schemathesis infers. Both together take under a minute
-on two cores. (The tests drive hypothesis themselves: `schemathesis.pytest.from_fixture` fails on pytest 9.)
+then the stateful phase chains calls along the links schemathesis infers. Both together take one to one and a half
+minutes per backend on two cores. (The tests drive hypothesis themselves: `schemathesis.pytest.from_fixture` fails on pytest 9.)
 """
 
 from __future__ import annotations
@@ -41,12 +41,16 @@ EXCLUDED = [
 
 
 @pytest.fixture(scope="module")
-def fuzz_app(tmp_path_factory: pytest.TempPathFactory) -> Iterator[FastAPI]:
-    """The app on a SQLite database of its own, rate limits off: the fuzzer is one key flooding it, and its
-    requests without or with a wrong key would trip the per-address limit on failed authentications (429
-    instead of the 401 its auth checks expect; `tests/service/test_rate_limits.py` covers the limits)."""
+def fuzz_app(tmp_path_factory: pytest.TempPathFactory, database_url: str) -> Iterator[FastAPI]:
+    """The app on the session's database of each backend (SQLite and PostgreSQL: a NUL in a string is only
+    refused by the latter's driver), rate limits off: the fuzzer is one key flooding it, and its requests
+    without or with a wrong key would trip the per-address limit on failed authentications (429 instead of
+    the 401 its auth checks expect; `tests/service/test_rate_limits.py` covers the limits)."""
     folder: Path = tmp_path_factory.mktemp("fuzz")
-    application = create_app(Settings(data_dir=folder / "var", rate_limit_per_key=0, rate_limit_per_ip=0))
+    settings = Settings(
+        data_dir=folder / "var", database_url=database_url, rate_limit_per_key=0, rate_limit_per_ip=0
+    )
+    application = create_app(settings)
     yield application
     application.state.engine.dispose()
 
