@@ -13,6 +13,7 @@ from fastapi.testclient import TestClient
 from sqlalchemy import create_engine, event, select, update
 from sqlalchemy.orm import sessionmaker
 
+from service.api.app import create_app
 from service.api.auth import Caller, KeyCache
 from service.settings import Settings
 from service.store.models.base import utcnow
@@ -61,24 +62,34 @@ def test_keys_are_stored_hashed(app: FastAPI, api_key: str) -> None:
 
 
 def test_keys_create_command_prints_a_working_key_on_its_last_line(
-    settings: Settings, app: FastAPI, client: TestClient
+    tmp_path: Path, empty_database_url: str
 ) -> None:
+    """On a database of its own: another process writing to the session's shared SQLite file while this one
+    holds pooled connections to it has been seen to leave later tests with ``disk I/O error``."""
+    settings = Settings(data_dir=tmp_path / "var", database_url=empty_database_url)
+    app = create_app(settings)
     env = os.environ | {
         "METAIRL_DATA_DIR": str(settings.data_dir),
         "METAIRL_DATABASE_URL": settings.resolved_database_url,
     }
-    done = subprocess.run(
-        [sys.executable, "-m", "metairl_cli.main", "keys", "create", "--lab", "cli lab"],
-        cwd=REPO,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=True,
-    )
-    key = done.stdout.strip().splitlines()[-1]
-    assert " " not in key
-    assert client.get("/v1/demonstrators", headers={"Authorization": f"Bearer {key}"}).status_code == 200
+    try:
+        with TestClient(app) as client:
+            done = subprocess.run(
+                [sys.executable, "-m", "metairl_cli.main", "keys", "create", "--lab", "cli lab"],
+                cwd=REPO,
+                env=env,
+                capture_output=True,
+                text=True,
+                timeout=60,
+                check=True,
+            )
+            key = done.stdout.strip().splitlines()[-1]
+            assert " " not in key
+            assert (
+                client.get("/v1/demonstrators", headers={"Authorization": f"Bearer {key}"}).status_code == 200
+            )
+    finally:
+        app.state.engine.dispose()
 
 
 def test_importing_the_app_does_not_import_torch() -> None:
