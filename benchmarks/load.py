@@ -13,7 +13,7 @@ written through the store layer, as the worker would), then runs ``wrk`` against
 three times each, and prints a markdown table of the medians (req/s, p50, p99) with the load average
 before each backend, the API worker RSS after the load, and the versions. Usage::
 
-    .venv/bin/python benchmarks/load.py [--backends postgres,sqlite] [--workers 2] [--duration 5]
+    python -m benchmarks.load [--backends postgres,sqlite] [--workers 2] [--duration 5]
 
 Needs ``wrk`` (Debian: ``apt-get install wrk``), PostgreSQL at ``--postgres`` (trust auth; a database
 ``metairl_load_<random>`` is created and dropped) and Redis at ``--redis``. ``--app-dir`` serves the code of
@@ -45,7 +45,6 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
 N_STATES = 80_000
 PACKAGES = ("uvicorn", "uvloop", "httptools", "fastapi", "starlette", "sqlalchemy", "psycopg")
