@@ -1,4 +1,4 @@
-"""Scale-out: N ``metairl worker`` processes on one Redis broker run N jobs at once (issue 14).
+"""Scale-out: N ``metairl worker`` processes on one Redis broker run N jobs at once.
 
 For each worker count of ``--workers`` it starts the production shape on a fresh PostgreSQL database
 (``metairl_scaleout_<random>``) and a ``redis-server`` of its own (free port, no persistence, so the

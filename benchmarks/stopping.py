@@ -1,4 +1,4 @@
-"""Stopping rule check (issue 13 §3): where does the held-out rule stop, against the step a known reward prefers?
+"""Stopping rule check: where does the held-out rule stop, against the step a known reward prefers?
 
 Runs the fit's own loop (`metairl_engine.fit` internals, one member, default config otherwise) for a fixed
 number of steps on problems with a known reward, and every ``--every`` steps scores the live networks'
