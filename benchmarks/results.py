@@ -112,7 +112,8 @@ def accuracy_section() -> list[str]:
         gains.append(f"{g} {mean['default'] - mean['none']:+.3f}")
     out += [f"Sharing gain (default − none): {', '.join(gains)}.", ""]
     if FAMILIES.exists():
-        body = FAMILIES.read_text().split("\n", 1)[1] if FAMILIES.read_text().startswith("# ") else ""
+        text = FAMILIES.read_text()
+        body = text.split("\n", 1)[1] if text.startswith("# ") else text  # its title becomes ours
         out += ["### Benchmark families", "", "From [FAMILIES.md](FAMILIES.md):", ""]
         out += [re.sub(r"^(#+) ", r"\1## ", line) for line in body.strip("\n").splitlines()] + [""]
     grid = [r for r in load("accuracy_results.json") or [] if r["engine"] == GRID_ENGINE]
@@ -153,7 +154,8 @@ def fit_time_section() -> list[str]:
     rows = stored["rows"]
     out += [
         "One default fit (8 tasks × 3 demonstrations) per world, one torch thread, CPU seconds of the fit alone; "
-        "run it from a checkout of another commit to compare engines (its docstring says how).",
+        "run it from a checkout of another commit to compare engines (its docstring says how). Wall seconds grow "
+        "with the machine's load (recorded below); CPU seconds much less.",
         "",
         *provenance_lines([stored["provenance"]], [stored["provenance"]["command"]]),
         "",
@@ -180,7 +182,8 @@ def scale_section() -> list[str]:
         "The paper's 100×100 grid × 8 velocity directions (80,000 states, 8 actions), Huber sharing on all states "
         "(automatic sharing blocks), MLP [100, 50, 25], 3 soft-optimal demonstrations per task; each measurement "
         "in a fresh process, so peak RSS is that fit's (with ~0.3 GB of interpreter, torch and demonstration "
-        "generation). Step time: median over the steps after a warm-up.",
+        "generation). Step time: median over the steps after a warm-up. Wall seconds grow with the machine's load "
+        "(recorded below); CPU seconds much less.",
         "",
         *provenance_lines([stored["provenance"]], [stored["provenance"]["command"]]),
         "",

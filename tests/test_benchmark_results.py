@@ -30,6 +30,20 @@ def test_check_fails_on_a_stale_page(tmp_path: Path, monkeypatch: pytest.MonkeyP
     assert results.main(["--check"]) == 1
 
 
+def test_a_families_page_is_included_under_accuracy_per_family(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    families = tmp_path / "FAMILIES.md"
+    families.write_text(
+        "# Families\n\n## Objectworld\n\n| family | default |\n| --- | --- |\n| objectworld | 0.5 |\n"
+    )
+    monkeypatch.setattr(results, "FAMILIES", families)
+    text = results.page()
+    section = text.split("\n## ")[1]
+    assert section.startswith("Accuracy per family")
+    assert "### Objectworld" in section and "| objectworld | 0.5 |" in section
+
+
 def test_every_table_names_its_command_and_provenance() -> None:
     text = results.page()
     for section in text.split("\n## ")[1:]:
