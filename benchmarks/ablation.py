@@ -1,23 +1,22 @@
 """Ablation: each candidate change to the default config, measured one by one on every terrain generator.
 
-The setting is the one issue 13 targets: 8 tasks × 3 demonstrations, goal state excluded, 10 worlds of the
-repo's generator (`metairl_engine/sim/terrain.py`, tuned on), of the frozen one (`frozen_terrain.py`, never
-tuned on) and of ``slip``: the repo's worlds with stochastic moves (`slippery_world_and_tasks`, added in
-session 10, never tuned on). A variant is a named set of FitConfig overrides; every fit is cached in `ablation_results.json`
-so a rerun only computes what is missing. Usage::
+The setting: 8 tasks × 3 demonstrations, goal state excluded, 10 worlds of the repo's generator
+(`metairl_engine/sim/terrain.py`, tuned on), of the frozen one (`frozen_terrain.py`, never tuned on) and of
+``slip``: the repo's worlds with stochastic moves (`slippery_world_and_tasks`, never tuned on). A variant is a
+named set of FitConfig overrides; every fit is cached in `ablation_results.json` with the engine it ran on
+and its provenance, so a rerun only computes what is missing. Usage::
 
-    .venv/bin/python benchmarks/ablation.py                      # every variant, every generator
-    .venv/bin/python benchmarks/ablation.py --variants default none
-    .venv/bin/python benchmarks/ablation.py --featureless --variants default one-hot none   # tabular uploads
-    .venv/bin/python benchmarks/ablation.py --table               # print the table from the cache only
-    .venv/bin/python benchmarks/ablation.py --table --choose --variants w0.3 default w3   # choice by held-out NLL
+    python -m benchmarks.ablation                      # every variant, every generator
+    python -m benchmarks.ablation --variants default none
+    python -m benchmarks.ablation --featureless --variants default one-hot none   # tabular uploads
+    python -m benchmarks.ablation --table               # print the table from the cache only
+    python -m benchmarks.ablation --table --choose --variants w0.3 default w3   # choice by held-out NLL
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
@@ -26,16 +25,14 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from benchmarks.accuracy import ENGINE, run_one, world_and_tasks
+from benchmarks.frozen_terrain import frozen_world_and_tasks
+from benchmarks.provenance import provenance
+from metairl_engine import FitConfig
+from metairl_engine.grids import grid_mdp
+from metairl_engine.sim.terrain import SimTask, World, make_tasks, make_world
+
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parent))
-sys.path.insert(0, str(HERE))
-
-from accuracy import REVISION, run_one, world_and_tasks  # noqa: E402
-from frozen_terrain import frozen_world_and_tasks  # noqa: E402
-
-from metairl_engine import FitConfig  # noqa: E402
-from metairl_engine.grids import grid_mdp  # noqa: E402
-from metairl_engine.sim.terrain import SimTask, World, make_tasks, make_world  # noqa: E402
 
 SLIP = 0.2
 """The ``slip`` generator's probability that a step goes where another move (uniformly chosen) leads."""
@@ -58,7 +55,7 @@ GENERATORS: dict[str, Callable[[int], tuple[World, list[SimTask]]]] = {
 }
 
 VARIANTS: dict[str, dict[str, Any]] = {
-    # The config as it was before issue 13 (Huber sharing, weight 1, one network per task, one seed).
+    # The paper's config: Huber sharing, weight 1, one network per task, one seed.
     "paper-huber": {"sharing": "huber"},
     "none": {"sharing": "none"},
     "l2": {"sharing": "l2"},
@@ -74,8 +71,7 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "huber-ens4-narrow": {"sharing": "huber", "ensemble": 4, "hidden": (64, 32, 16)},
     "huber-narrow": {"sharing": "huber", "hidden": (64, 32, 16)},
     "default": {},
-    # Cost of a fit (issue 13: at most 2x the time of the config before it): fewer steps, narrower networks,
-    # a larger step size.
+    # Cheaper fits: fewer steps, narrower networks, a larger step size.
     "ens4-steps300": {"ensemble": 4, "max_steps": 300},
     "ens4-steps500": {"ensemble": 4, "max_steps": 500},
     "ens4-narrow-steps500": {"ensemble": 4, "hidden": (64, 32, 16), "max_steps": 500},
@@ -116,8 +112,8 @@ def config_of(variant: str) -> FitConfig:
 
 
 def key_of(variant: str) -> str:
-    """Cache key of a variant: the engine revision and its full config, so no stale row is ever reused."""
-    return f"{REVISION}:" + json.dumps(config_of(variant).to_dict(), sort_keys=True)
+    """Cache key of a variant: the engine it runs on and its full config, so no stale row is ever reused."""
+    return f"{ENGINE}:" + json.dumps(config_of(variant).to_dict(), sort_keys=True)
 
 
 def table(rows: list[dict[str, Any]], labels: list[str]) -> str:
@@ -183,7 +179,7 @@ def main() -> None:
     parser.add_argument("--demos", type=int, default=3)
     parser.add_argument("--table", action="store_true", help="only print the table from the cache")
     parser.add_argument(
-        "--all", action="store_true", help="table of every label in the cache, earlier revisions too"
+        "--all", action="store_true", help="table of every label in the cache, other engines' too"
     )
     parser.add_argument("--cache", type=Path, default=HERE / "ablation_results.json")
     parser.add_argument(
@@ -207,6 +203,7 @@ def main() -> None:
         if r["tasks"] == args.tasks and r["demos"] == args.demos
     }
     suffix = NO_FEATURES if args.featureless else ""
+    run = provenance()
     todo = [
         (g, v, w)
         for v in args.variants
@@ -222,7 +219,17 @@ def main() -> None:
         world, sims = worlds[g, w]
         out = run_one(world, sims, n_tasks=args.tasks, n_demos=args.demos, config=config_of(v))
         key = key_of(v) + suffix
-        rows.append({"generator": g, "variant": v + suffix, "config_key": key, "world": w, **setting, **out})
+        rows.append(
+            {
+                "generator": g,
+                "variant": v + suffix,
+                "config_key": key,
+                "world": w,
+                **setting,
+                **out,
+                "provenance": run,
+            }
+        )
         args.cache.write_text(json.dumps(rows, indent=0))
     current = {key_of(v) + suffix for v in args.variants}
     wanted = [

@@ -7,8 +7,9 @@ state (a goal indicator alone would score well with it), averaged over tasks; th
 with −cost. The default config picks its stopping step on held-out likelihood only: the true reward is
 used for scoring, never for fitting. Usage::
 
-    .venv/bin/python benchmarks/accuracy.py            # full grid: 10 worlds × tasks 1,2,4,8,16 × demos 1,3,10
-    .venv/bin/python benchmarks/accuracy.py --quick    # 10 worlds × tasks 1,4,8 × demos 3
+    python -m benchmarks.accuracy            # full grid: 10 worlds × tasks 1,2,4,8,16 × demos 1,3,10
+    python -m benchmarks.accuracy --quick    # 10 worlds × tasks 1,4,8 × demos 3
+    python -m benchmarks.accuracy --engine baddbmm-step --plot benchmarks/accuracy.png   # table and plot of stored rows
 """
 
 from __future__ import annotations
@@ -16,7 +17,6 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
-import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -24,26 +24,23 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from benchmarks.provenance import provenance
+from metairl_engine import FitConfig
+from metairl_engine.metrics import pearson
+from metairl_engine.results import TaskData
+from metairl_engine.sim.terrain import SimTask, World, make_tasks, make_world
 
-from metairl_engine import FitConfig  # noqa: E402
-from metairl_engine.metrics import pearson  # noqa: E402
-from metairl_engine.results import TaskData  # noqa: E402
-from metairl_engine.sim.terrain import SimTask, World, make_tasks, make_world  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
 
 SHARINGS = ("none", "l2", "huber", "std", "entropy")
 
-REVISION = "rev6"
-"""The engine's behaviour beyond its config, stored with every cached row (here and in ablation.py) so no
-stale row is reused: bump it, and relabel ablation's rows, when the fit changes. Rows without one ran
-before issue 13. rev1: stopping on the plain held-out NLL; rev2: on the calibrated held-out NLL
-(fit.calibrated_nll); rev3: and stopping once it has set no new best for ``patience`` steps
-(fit.HeldOutStopper); rev4: one stopper for all ensemble members, on their held-out folds together (a
-K-fold cross-validated NLL); rev5: the patience restarts only on a new best by more than one standard error
-(meaningful progress), and the first layer's bias is fused into its product (same results up to rounding);
-rev6: a cheaper step, the same method (session 9: bias as a column of ones, the last layer as a product and
-a sum, index_select gathers, fused Adam); its rounding alone moves a 10-world mean by about 0.01."""
+ENGINE = "cheap-step"
+"""The engine's implementation beyond its config, stored with every cached row (here and in ablation.py) so
+no stale row is reused: rename it, and relabel ablation's rows, when the fit changes. ``cheap-step`` is
+today's engine; ``baddbmm-step`` is the same method (automatic ensemble, cross-validated calibrated held-out
+NLL, patience restarted only by a new best beyond one standard error) with its step before the cheaper
+rewrite (bias as a column of ones, gathers by index_select, fused Adam), whose rounding alone moves a 10-world
+mean by about 0.01."""
 HERE = Path(__file__).resolve().parent
 
 
@@ -139,6 +136,9 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="10 worlds × tasks 1,4,8 × demos 3")
     parser.add_argument("--cache", type=Path, default=HERE / "accuracy_results.json")
     parser.add_argument("--plot", type=Path, default=HERE / "accuracy.png")
+    parser.add_argument(
+        "--engine", default=ENGINE, help=f"rows of this engine; only {ENGINE!r} (today's) runs missing fits"
+    )
     args = parser.parse_args()
     if args.quick:
         args.tasks, args.demos = [1, 4, 8], [3]
@@ -148,12 +148,13 @@ def main() -> None:
     torch.set_num_threads(1)  # 256-state problems: one thread is fastest, and leaves a core to others
     config = FitConfig()
     rows: list[dict] = json.loads(args.cache.read_text()) if args.cache.exists() else []
-    done = {(r["world"], r["sharing"], r["tasks"], r["demos"]) for r in rows if r.get("revision") == REVISION}
+    done = {(r["world"], r["sharing"], r["tasks"], r["demos"]) for r in rows if r["engine"] == args.engine}
     todo = [
         k
         for k in itertools.product(range(args.worlds), args.sharing, args.tasks, args.demos)
-        if k not in done
+        if k not in done and args.engine == ENGINE
     ]
+    run = provenance()
     cache: dict[int, tuple[World, list[SimTask]]] = {}
     for w, sharing, n_tasks, n_demos in tqdm(todo, desc="fits"):
         if w not in cache:
@@ -161,13 +162,21 @@ def main() -> None:
         world, sims = cache[w]
         out = run_one(world, sims, n_tasks=n_tasks, n_demos=n_demos, config=replace(config, sharing=sharing))
         rows.append(
-            {"world": w, "sharing": sharing, "tasks": n_tasks, "demos": n_demos, "revision": REVISION, **out}
+            {
+                "world": w,
+                "sharing": sharing,
+                "tasks": n_tasks,
+                "demos": n_demos,
+                "engine": ENGINE,
+                **out,
+                "provenance": run,
+            }
         )
         args.cache.write_text(json.dumps(rows, indent=0))
     wanted = [
         r
         for r in rows
-        if r.get("revision") == REVISION
+        if r["engine"] == args.engine
         and r["world"] < args.worlds
         and r["sharing"] in args.sharing
         and r["tasks"] in args.tasks

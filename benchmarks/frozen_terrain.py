@@ -1,9 +1,9 @@
 """FROZEN second terrain generator: a held-out world family that no default of metairl is ever tuned on.
 
-Committed before any tuning of the defaults (issue 13) and never changed since: defaults are chosen on the
+Committed before any tuning of the defaults and never changed since: defaults are chosen on the
 repo's own generator (`metairl_engine/sim/terrain.py`) and only *reported* here, so a gain that shows up on
 both is a gain of the method, not a fit to one generator. It differs from the repo's generator in every
-respect the issue names:
+respect that matters here:
 
 | | repo generator (`terrain.py`) | this one |
 | --- | --- | --- |

@@ -1,4 +1,4 @@
-"""Time `grid_mdp` builds (including validation) at the paper's 100×100 size: ``python benchmarks/grids.py``."""
+"""Time `grid_mdp` builds (including validation) at the paper's 100×100 size: ``python -m benchmarks.grids``."""
 
 from __future__ import annotations
 

@@ -13,18 +13,20 @@ written through the store layer, as the worker would), then runs ``wrk`` against
 three times each, and prints a markdown table of the medians (req/s, p50, p99) with the load average
 before each backend, the API worker RSS after the load, and the versions. Usage::
 
-    .venv/bin/python benchmarks/load.py [--backends postgres,sqlite] [--workers 2] [--duration 5]
+    python -m benchmarks.load [--backends postgres,sqlite] [--workers 2] [--duration 5]
 
 Needs ``wrk`` (Debian: ``apt-get install wrk``), PostgreSQL at ``--postgres`` (trust auth; a database
 ``metairl_load_<random>`` is created and dropped) and Redis at ``--redis``. ``--app-dir`` serves the code of
 another checkout (for a before/after comparison in one sitting) and ``--uvicorn-args`` adds options.
-Nothing is written into the repository; the data folder is removed at the end.
+The rows, with their provenance and the served packages' versions, go to ``benchmarks/load_results.json``
+(``--results``); the data folder is removed at the end.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import os
 import platform
 import re
@@ -44,8 +46,9 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from benchmarks.provenance import provenance
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
 N_STATES = 80_000
 PACKAGES = ("uvicorn", "uvloop", "httptools", "fastapi", "starlette", "sqlalchemy", "psycopg")
@@ -90,6 +93,7 @@ def main() -> int:
         help="MALLOC_ARENA_MAX of the API processes, as `metairl serve` sets it (0: leave glibc's default)",
     )
     parser.add_argument("--label", default="", help="a name for this run in the table's heading")
+    parser.add_argument("--results", type=Path, default=ROOT / "benchmarks" / "load_results.json")
     args = parser.parse_args()
     if shutil.which("wrk") is None:
         sys.exit("load.py needs wrk (Debian: apt-get install wrk)")
@@ -104,6 +108,9 @@ def main() -> int:
     lines.append("| backend | request | conns | req/s | p50 ms | p99 ms | non-2xx | load avg (1 min) |")
     lines.append("| --- | --- | --- | --- | --- | --- | --- | --- |")
     rss_notes = []
+    run = {**provenance(), "served": versions(args.app_dir)}
+    rows: list[dict[str, Any]] = []
+    rss: dict[str, dict[str, list[float]]] = {}
     for backend in args.backends.split(","):
         with database(backend, args.postgres) as (url, data_dir):
             key, job_id, reward_id = seed(url, data_dir)
@@ -129,6 +136,18 @@ def main() -> int:
                 for target in targets:
                     load = os.getloadavg()[0]
                     results = [wrk(base, target, key, args.duration) for _ in range(args.runs)]
+                    rows.append(
+                        {
+                            "backend": backend,
+                            "request": target.name,
+                            "connections": target.connections,
+                            "rps": statistics.median(r.rps for r in results),
+                            "p50_ms": statistics.median(r.p50_ms for r in results),
+                            "p99_ms": statistics.median(r.p99_ms for r in results),
+                            "non_2xx": sum(r.errors for r in results),
+                            "load_average": load,
+                        }
+                    )
                     lines.append(
                         f"| {backend} | `{target.name}` | {target.connections} "
                         f"| {statistics.median(r.rps for r in results):,.0f} "
@@ -139,9 +158,11 @@ def main() -> int:
                     print(lines[-1], flush=True)
                 after = worker_rss_mb(server, workers=args.workers)
                 rss_notes.append(f"{backend}: {megabytes(at_start)} MB at start, {megabytes(after)} MB after")
+                rss[backend] = {"at_start": at_start, "after": after}
 
     lines += ["", f"API worker RSS (each process): {'; '.join(rss_notes)} the load.", ""]
     print("\n".join(lines))
+    args.results.write_text(json.dumps({"provenance": run, "rows": rows, "rss_mb": rss}, indent=1) + "\n")
     return 0
 
 

@@ -4,7 +4,7 @@ Each case runs in a fresh Python process: it builds a grid or ring MDP and rando
 steps (memory peaks in the first step and the final evaluation, not later), and reports the process's peak
 resident memory (``ru_maxrss``) above what it held before importing torch, beside the estimate::
 
-    .venv/bin/python benchmarks/memory.py            # ten cases, 2-6 minutes on two busy cores
+    python -m benchmarks.memory            # ten cases, 2-6 minutes on two busy cores
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ import json
 import resource
 import subprocess
 import sys
+from pathlib import Path
 from typing import Any
 
 CASES: list[dict[str, Any]] = [
@@ -100,7 +101,11 @@ def main() -> None:
     print("| --- | --- | --- | --- | --- |")
     for case in CASES:
         out = subprocess.run(
-            [sys.executable, __file__, json.dumps(case)], capture_output=True, text=True, check=True
+            [sys.executable, "-m", "benchmarks.memory", json.dumps(case)],
+            capture_output=True,
+            text=True,
+            check=True,
+            cwd=Path(__file__).resolve().parents[1],
         )
         row = json.loads(out.stdout.splitlines()[-1])
         ratio = row["estimate"] / row["measured"]

@@ -7,7 +7,7 @@ grid (100×100 = 80,000 states by default). The table gives the Pearson correlat
 reward with the patient's ideal reward, and of the baseline with it (the paper's "origin" column), on the
 states the demonstrations visit and on all states, with the wall time of each session's fit. Usage::
 
-    .venv/bin/python benchmarks/motion.py [--size 100] [--seed 0] [--out benchmarks/MOTION.md]
+    python -m benchmarks.motion [--size 100] [--seed 0] [--out benchmarks/MOTION.md]
         [--images benchmarks/motion] [--outward-only] [--direction-preference R R R R R R R R]
 
 ``--size 30`` (7,200 states) runs in a few minutes for a quick look; only 100 reproduces the paper's MDP.
@@ -17,7 +17,7 @@ of the controller patient (`metairl_engine.sim.controller_patient`) with each co
 learned baseline against the inherent preference; rows accumulate in ``benchmarks/motion/identifiability.json``
 and the table, with the kinematic readout of the same recordings, replaces MOTION.md's identifiability block::
 
-    .venv/bin/python benchmarks/motion.py identify [--size 30] [--seed 0]
+    python -m benchmarks.motion identify [--size 30] [--seed 0]
         [--generators planner controller controller-null] [--variants NAME ...] [--only-table]
 """
 
@@ -35,27 +35,25 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-import torch  # noqa: E402
-
-from metairl_engine import FitConfig, Layout, Trajectory  # noqa: E402
-from metairl_engine.fit import FitResult, Progress, TaskData, fit  # noqa: E402
-from metairl_engine.grids import DIRECTION_NAMES, grid_mdp, velocity_coords  # noqa: E402
-from metairl_engine.metrics import pearson  # noqa: E402
-from metairl_engine.motion.kinematics import compare_recordings, comparison_png  # noqa: E402
-from metairl_engine.motion.readout import ring_centred  # noqa: E402
-from metairl_engine.motion.recording import DiscretiseSettings, demonstrations  # noqa: E402
-from metairl_engine.sim.controller_patient import ControllerSettings, simulate_controller_patient  # noqa: E402
-from metairl_engine.sim.patient import (  # noqa: E402
+from metairl_engine import FitConfig, Layout, Trajectory
+from metairl_engine.fit import FitResult, Progress, TaskData, fit
+from metairl_engine.grids import DIRECTION_NAMES, grid_mdp, velocity_coords
+from metairl_engine.metrics import pearson
+from metairl_engine.motion.kinematics import compare_recordings, comparison_png
+from metairl_engine.motion.readout import ring_centred
+from metairl_engine.motion.recording import DiscretiseSettings, demonstrations
+from metairl_engine.sim.controller_patient import ControllerSettings, simulate_controller_patient
+from metairl_engine.sim.patient import (
     DIRECTION_PREFERENCE,
     PatientSettings,
     SyntheticPatient,
     simulate_patient,
 )
-from service.files.images import heatmap_png  # noqa: E402
+from service.files.images import heatmap_png
+
+ROOT = Path(__file__).resolve().parents[1]
 
 GAMMA = 0.9
 """Discount of the learner's MDP (the tutorial's `POST /v1/mdps` value; the patient itself planned with 0.95)."""

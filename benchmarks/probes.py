@@ -5,8 +5,8 @@ request; the table gives its answer, the process's resident size before, its pea
 afterwards. ``streams``: ``GET /v1/mdps`` latency on PostgreSQL with N event streams open (several keys: a key
 holds at most ``METAIRL_EVENTS_MAX_STREAMS_PER_KEY``). Run from the repository root:
 
-    .venv/bin/python benchmarks/probes.py memory
-    .venv/bin/python benchmarks/probes.py streams --streams 200
+    .venv/bin/python -m benchmarks.probes memory
+    .venv/bin/python -m benchmarks.probes streams --streams 200
 """
 
 from __future__ import annotations
@@ -30,14 +30,13 @@ from pathlib import Path
 import httpx
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+from metairl_cli.keys import create_key
+from service.api.app import create_app
+from service.settings import Settings
+from tests.conftest import fresh_database
+from tests.served import free_port
 
-from metairl_cli.keys import create_key  # noqa: E402
-from service.api.app import create_app  # noqa: E402
-from service.settings import Settings  # noqa: E402
-from tests.conftest import fresh_database  # noqa: E402
-from tests.served import free_port  # noqa: E402
+REPO = Path(__file__).resolve().parents[1]
 
 CORRIDOR = {
     "kind": "explicit",

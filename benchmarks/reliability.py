@@ -10,7 +10,7 @@ and keeps polling until the job succeeded: the new worker's reaper finds the sta
 re-queues the job, and attempt 2 runs it from step 0 to the end. The timeline (progress per attempt,
 status bands, the kill and recovery) is saved as a PNG and summarised on stdout. Usage::
 
-    .venv/bin/python benchmarks/reliability.py [--out docs/reliability.png] [--broker redis://127.0.0.1:6379/0]
+    python -m benchmarks.reliability [--out docs/reliability.png] [--broker redis://127.0.0.1:6379/0]
 
 Nothing is written into the repository but the PNG; the run's data folder is removed at the end, and
 with ``--broker`` the run's queue and exchange are deleted. On Redis the killed worker's unacknowledged
@@ -36,16 +36,15 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from matplotlib.figure import Figure
+
+from metairl_cli.serve import child_environment, shut_down, spawn, wait_healthy
+from metairl_client import TERMINAL_STATUSES, Client, MetairlError
+from metairl_engine import Trajectory
+from service.jobs.broker import broker_url, delete_queue
+from service.settings import Settings
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from matplotlib.figure import Figure  # noqa: E402
-
-from metairl_cli.serve import child_environment, shut_down, spawn, wait_healthy  # noqa: E402
-from metairl_client import TERMINAL_STATUSES, Client, MetairlError  # noqa: E402
-from metairl_engine import Trajectory  # noqa: E402
-from service.jobs.broker import broker_url, delete_queue  # noqa: E402
-from service.settings import Settings  # noqa: E402
 
 TIMINGS = {
     "job_heartbeat_s": 0.3,

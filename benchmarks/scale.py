@@ -6,9 +6,9 @@ that fit's alone); steps, wall time and accuracy (mean Pearson of each task's re
 reward, on all states and on the states its demonstrations visited) to the default stopping rule for 8
 and 16 tasks; and the MaxEnt reference solver's time per task on the same MDP. ``--blocks`` repeats the
 step and full rows for each value of `FitConfig.sharing_blocks` (0: automatic, 1: every state every
-step). Usage::
+step). The rows and their provenance go to ``benchmarks/scale_results.json`` (``--results``). Usage::
 
-    .venv/bin/python benchmarks/scale.py [--tasks 1 4 8 16] [--steps 10] [--full 8 16] [--maxent 1] [--threads N] [--blocks 0 1]
+    python -m benchmarks.scale [--tasks 1 4 8 16] [--steps 10] [--full 8 16] [--maxent 1] [--threads N] [--blocks 0 1]
 """
 
 from __future__ import annotations
@@ -22,18 +22,19 @@ import sys
 import time
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from benchmarks.provenance import provenance
+from metairl_engine import FitConfig, Trajectory
+from metairl_engine.grids import grid_mdp
+from metairl_engine.mdp import MDP
+from metairl_engine.planning import transition_matrix, value_iteration
+from metairl_engine.results import TaskData
+from metairl_engine.sim.terrain import make_world
 
-from metairl_engine import FitConfig, Trajectory  # noqa: E402
-from metairl_engine.grids import grid_mdp  # noqa: E402
-from metairl_engine.mdp import MDP  # noqa: E402
-from metairl_engine.planning import transition_matrix, value_iteration  # noqa: E402
-from metairl_engine.results import TaskData  # noqa: E402
-from metairl_engine.sim.terrain import make_world  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
 
 SIZE = 100
 CONFIG = FitConfig(sharing="huber", sharing_states="all")
@@ -142,13 +143,13 @@ def child(mode: str, n_tasks: int, steps: int, threads: int, blocks: int) -> dic
 
 def measure(mode: str, n_tasks: int, steps: int, threads: int, blocks: int = 0) -> dict[str, float]:
     """Run `child` in a fresh interpreter so peak RSS belongs to this measurement only."""
-    cmd = [sys.executable, __file__, "--child", mode, str(n_tasks), str(steps), str(threads), str(blocks)]
-    done = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    cmd = [sys.executable, "-m", "benchmarks.scale", "--child", mode, str(n_tasks), str(steps), str(threads)]
+    done = subprocess.run([*cmd, str(blocks)], capture_output=True, text=True, check=True, cwd=ROOT)
     return dict(json.loads(done.stdout.strip().splitlines()[-1]))
 
 
 def main() -> None:
-    """Parse arguments, run the measurements, print a markdown table."""
+    """Parse arguments, run the measurements, print a markdown table and store the rows."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--tasks", type=int, nargs="*", default=[1, 4, 8, 16])
     parser.add_argument("--steps", type=int, default=10)
@@ -158,6 +159,7 @@ def main() -> None:
     parser.add_argument(
         "--blocks", type=int, nargs="*", default=[0], help="sharing_blocks values (0: automatic)"
     )
+    parser.add_argument("--results", type=Path, default=ROOT / "benchmarks" / "scale_results.json")
     parser.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
@@ -169,9 +171,12 @@ def main() -> None:
         "| Pearson all (visited) | peak RSS GB | load |"
     )
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    run = provenance()
+    rows: list[dict[str, Any]] = []
     for blocks in args.blocks:
         for n in args.tasks:
             r = measure("step", n, args.steps, args.threads, blocks)
+            rows.append({"measurement": "step time", "sharing_blocks": blocks, "tasks": n, **r})
             print(
                 f"| step time | {blocks} | {n} | {r['s_per_step']:.3f} ({r['cpu_s_per_step']:.3f}) "
                 f"| {r['s_per_task_step']:.3f} | | | | {r['peak_rss_gb']:.2f} | {r['load_average']:.1f} |",
@@ -179,6 +184,7 @@ def main() -> None:
             )
         for n in args.full:
             r = measure("full", n, 0, args.threads, blocks)
+            rows.append({"measurement": "to stopping rule", "sharing_blocks": blocks, "tasks": n, **r})
             print(
                 f"| to stopping rule | {blocks} | {n} | | | {r['steps']} ({r['kept_step']}) | {r['wall_s']:.0f} "
                 f"| {r['pearson_all']:.3f} ({r['pearson_visited']:.3f}) | {r['peak_rss_gb']:.2f} "
@@ -187,11 +193,13 @@ def main() -> None:
             )
     if args.maxent:
         r = measure("maxent", args.maxent, 0, args.threads)
+        rows.append({"measurement": "maxent", "tasks": args.maxent, **r})
         print(
             f"| maxent | | {args.maxent} | | {r['s_per_task']:.1f} s/task | {r['iterations']} | | "
             f"| {r['peak_rss_gb']:.2f} | {os.getloadavg()[0]:.1f} |",
             flush=True,
         )
+    args.results.write_text(json.dumps({"provenance": run, "rows": rows}, indent=1) + "\n")
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Scale-out: N ``metairl worker`` processes on one Redis broker run N jobs at once (issue 14).
+"""Scale-out: N ``metairl worker`` processes on one Redis broker run N jobs at once.
 
 For each worker count of ``--workers`` it starts the production shape on a fresh PostgreSQL database
 (``metairl_scaleout_<random>``) and a ``redis-server`` of its own (free port, no persistence, so the
@@ -15,7 +15,7 @@ then each job's interval and each worker's CPU seconds (its processes' user + sy
 A pool process imports torch with its first job, so that job's time includes a few seconds of import.
 Usage::
 
-    .venv/bin/python benchmarks/scaleout.py [--workers 1 2] [--jobs 2] [--steps 2000] [--size 16] [--tasks 4]
+    python -m benchmarks.scaleout [--workers 1 2] [--jobs 2] [--steps 2000] [--size 16] [--tasks 4]
         [--threads 0]
 
 Needs PostgreSQL at ``--postgres`` (trust auth) and ``redis-server`` on PATH. Each worker count takes its
@@ -42,17 +42,16 @@ from datetime import UTC, datetime
 from importlib import metadata
 from pathlib import Path
 
+import redis
+
+from benchmarks.load import children, database, free_port
+from benchmarks.reliability import RunFailed, Worker, api_server, create_key, exit_code
+from metairl_cli.demo import upload_world
+from metairl_cli.demo_experiment import DemoSettings, make_experiment
+from metairl_cli.serve import shut_down
+from metairl_client import Client, JobState
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-import redis  # noqa: E402
-from load import children, database, free_port  # noqa: E402
-from reliability import RunFailed, Worker, api_server, create_key, exit_code  # noqa: E402
-
-from metairl_cli.demo import upload_world  # noqa: E402
-from metairl_cli.demo_experiment import DemoSettings, make_experiment  # noqa: E402
-from metairl_cli.serve import shut_down  # noqa: E402
-from metairl_client import Client, JobState  # noqa: E402
 
 POLL_S = 0.5
 """Seconds between two polls of the jobs (and samples of the workers' memory)."""

@@ -1,4 +1,4 @@
-"""Stopping rule check (issue 13 §3): where does the held-out rule stop, against the step a known reward prefers?
+"""Stopping rule check: where does the held-out rule stop, against the step a known reward prefers?
 
 Runs the fit's own loop (`metairl_engine.fit` internals, one member, default config otherwise) for a fixed
 number of steps on problems with a known reward, and every ``--every`` steps scores the live networks'
@@ -9,34 +9,30 @@ own rule stops and what it keeps), and the accuracy at each, beside the best acc
 any step reached. Problems: terrain worlds of both generators, and terrain on the velocity grid (the
 motion model: state = (cell, direction), true reward = −cost of the cell + goal bonus). Usage::
 
-    .venv/bin/python benchmarks/stopping.py --worlds 3 --steps 600
+    python -m benchmarks.stopping --worlds 3 --steps 600
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
+import torch
+import torch.nn.functional as F
+
+from benchmarks.accuracy import world_and_tasks
+from benchmarks.frozen_terrain import frozen_world_and_tasks
+from metairl_engine import FitConfig
+from metairl_engine.fit import HeldOutStopper, _evaluate, _Problem, gradient_step
+from metairl_engine.grids import grid_mdp
+from metairl_engine.metrics import pearson
+from metairl_engine.networks import StackedMLP
+from metairl_engine.results import TaskData
+from metairl_engine.sim.terrain import SimTask, World, make_tasks, make_world
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parent))
-sys.path.insert(0, str(HERE))
-
-import torch  # noqa: E402
-import torch.nn.functional as F  # noqa: E402
-from accuracy import world_and_tasks  # noqa: E402
-from frozen_terrain import frozen_world_and_tasks  # noqa: E402
-
-from metairl_engine import FitConfig  # noqa: E402
-from metairl_engine.fit import HeldOutStopper, _evaluate, _Problem, gradient_step  # noqa: E402
-from metairl_engine.grids import grid_mdp  # noqa: E402
-from metairl_engine.metrics import pearson  # noqa: E402
-from metairl_engine.networks import StackedMLP  # noqa: E402
-from metairl_engine.results import TaskData  # noqa: E402
-from metairl_engine.sim.terrain import SimTask, World, make_tasks, make_world  # noqa: E402
 
 
 def velocity_world_and_tasks(index: int) -> tuple[World, list[SimTask]]:

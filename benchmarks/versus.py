@@ -11,7 +11,7 @@ For each MDP size, 4 tasks × 3 demonstrations per world, fitted by
    subprocess running another venv's python (imitation pins its own torch and gymnasium).
 
 Accuracy is the Pearson correlation of each learned task reward with its true reward, goal state(s)
-excluded (as ``benchmarks/accuracy.py::run_one`` scores), mean ± std over worlds and tasks.
+excluded (as ``benchmarks.accuracy.run_one`` scores), mean ± std over worlds and tasks.
 
 MDPs: 1,024 states: ``terrain.make_world(size=32)``, 3 worlds; 10,000: ``make_world(size=100)``, 1 world
 (both 8 moves + stay, one hill per ~43 cells as in accuracy.py, ``make_tasks`` demonstrations); 80,000:
@@ -33,14 +33,16 @@ Dense transitions need S·A·S·8 bytes (imitation's soft Bellman backup ``T @ V
 matrix is cast to a float64 copy on every backup); sizes past ``--max-dense-gb`` are not run and say so.
 
 Time is wall-clock and CPU seconds of the fits alone (not data generation, not imitation's interpreter
-start; imitation's includes building its dense matrix), one thread everywhere. Rows go to ``benchmarks/versus_results.json`` (rows of the sizes run are
-replaced, others kept), the table to stdout. Commands::
+start; imitation's includes building its dense matrix), one thread everywhere. Rows, each with its
+provenance, go to ``benchmarks/versus_results.json`` (rows of the sizes run are replaced, others kept), the
+table to stdout. The imitation side runs this file as a script under ``.venv-imitation``'s python, which
+imports neither this engine nor the ``benchmarks`` package. Commands::
 
     python3 -m venv .venv-imitation && .venv-imitation/bin/pip install "torch==2.13.0" "imitation==1.0.1"
-    OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/versus.py
+    OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python -m benchmarks.versus
     # or one size at a time (how versus_results.json was made, imitation from another venv):
-    OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/versus.py --sizes 1000 --capped-steps 10 20 40 --imitation-python PATH/TO/bin/python
-    OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/versus.py --sizes 10000 80000 --imitation-python PATH/TO/bin/python
+    OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python -m benchmarks.versus --sizes 1000 --capped-steps 10 20 40 --imitation-python PATH/TO/bin/python
+    OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python -m benchmarks.versus --sizes 10000 80000 --imitation-python PATH/TO/bin/python
 """
 
 from __future__ import annotations
@@ -60,7 +62,6 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(ROOT))
 
 if TYPE_CHECKING:
     from metairl_engine import FitConfig, TaskData
@@ -116,7 +117,7 @@ def terrain_problem(size: int, world: int) -> Problem:
 
 def motion_problem() -> Problem:
     """scale.py's 80,000-state velocity-grid tasks, with the true reward `motion_tasks` demonstrated."""
-    from scale import SIZE, motion_goal, motion_reward, motion_tasks
+    from benchmarks.scale import SIZE, motion_goal, motion_reward, motion_tasks
 
     tasks = motion_tasks(N_TASKS, n_demos=N_DEMOS, seed=0)
     rewards, scored = [], []
@@ -396,7 +397,10 @@ def main() -> None:
     torch.set_num_threads(1)
     if not args.imitation_python.exists():
         print(f"note: no imitation python at {args.imitation_python}: its column is skipped", flush=True)
-    rows = [r for size in args.sizes for r in measure(size, args)]
+    from benchmarks.provenance import provenance
+
+    run = provenance()
+    rows = [{**r, "provenance": run} for size in args.sizes for r in measure(size, args)]
     kept = json.loads(args.results.read_text()) if args.results.exists() else []
     rows = [r for r in kept if r["size"] not in args.sizes] + rows
     args.results.write_text(json.dumps(rows, indent=1) + "\n")

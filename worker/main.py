@@ -13,7 +13,7 @@ def prepare_environment(*, concurrency: int) -> None:
     spins for long, so when anything else runs on the cores (the API, another worker, the database) a
     spinning thread holds a core its sibling needs. With one other busy process an 80,000-state step took
     0.051 s per task-step spinning and 0.027 with the short spin, and 0.011 / 0.012 on quiet cores
-    (benchmarks/RESULTS.md, "Waiting threads").
+    (16 tasks of ``python -m benchmarks.scale``, 12 steps, torch's default 2 threads).
     """
     os.environ["METAIRL_WORKER_CONCURRENCY"] = str(concurrency)
     os.environ.setdefault("GOMP_SPINCOUNT", "3000")

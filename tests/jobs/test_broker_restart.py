@@ -1,4 +1,4 @@
-"""A broker restart that loses a queued job's message: the job is sent again and runs (issue 16, item 7).
+"""A broker restart that loses a queued job's message: the job is sent again and runs.
 
 The test starts its own ``redis-server`` (no persistence, a free port) so that it can restart it without
 touching the machine's shared Redis; the worker is a real ``metairl worker`` process.

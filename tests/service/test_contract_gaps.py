@@ -1,4 +1,4 @@
-"""Contract gaps found by fuzzing (issue 16, item 8), one test each: bodies, names, integers, media types,
+"""Contract gaps found by fuzzing, one test each: bodies, names, integers, media types,
 malformed and non-UTF-8 JSON, empty cursors, 405 `Allow`, true rewards that do not fit float32.
 (Huge finite correlations: `test_comparisons.py`; CSV rows with extra cells: `test_demonstrations.py`.)"""
 

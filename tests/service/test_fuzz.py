@@ -1,4 +1,4 @@
-"""Schemathesis against the API's own OpenAPI document (issue 16): every operation, generated requests, all
+"""Schemathesis against the API's own OpenAPI document: every operation, generated requests, all
 of schemathesis's checks (status codes, content types, headers and bodies against the documented responses,
 not only server errors).
 

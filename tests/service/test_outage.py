@@ -1,4 +1,4 @@
-"""A database outage (issue 16): the API runs on a PostgreSQL of its own, which is stopped and started again.
+"""A database outage: the API runs on a PostgreSQL of its own, which is stopped and started again.
 
 While it is down, `/v1` requests answer 503 problem+json with `Retry-After` (never 500), `/readyz` 503 and
 `/healthz` 200; once it is back, requests succeed again without restarting the API, and no upload was left

@@ -1,4 +1,4 @@
-"""Size limits (issue 16, items 1 and 2): an `.npz` bomb is refused from its headers before it is read,
+"""Size limits: an `.npz` bomb is refused from its headers before it is read,
 and MDP sizes and hidden layers over the `METAIRL_MAX_*` settings are 422s naming the setting, on upload and
 on job submission."""
 
