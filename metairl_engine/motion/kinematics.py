@@ -230,6 +230,7 @@ def comparison_png(
     interval excludes 0. matplotlib is imported here only, and drawn on an Agg canvas without pyplot (no global
     backend, safe in a server thread)."""
     import io
+    import textwrap
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -285,6 +286,22 @@ def comparison_png(
         ha="center",
         fontsize=10,
     )
+    verdicts = [
+        f"{name}: the learned readout {VERDICT_PHRASES[learned['agreement']['verdict']]} "
+        f"— {learned['agreement']['detail']}"
+        for side, name in (("a", names[0]), ("b", names[1]))
+        if (learned := (comparison.get("learned") or {}).get(side)) and learned.get("agreement")
+    ]
+    if verdicts:  # the verdict beside the learned readout (docs/motion.md), never the readout alone
+        fig.text(0.0, -0.06, "\n".join(textwrap.fill(v, 190) for v in verdicts), va="top", fontsize=8)
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", bbox_inches="tight")
     return buffer.getvalue()
+
+
+VERDICT_PHRASES = {
+    "agrees": "agrees with the recordings",
+    "disagrees": "CONTRADICTS the recordings: not a preference",
+    "undetermined": "is not confirmed by the recordings: not a preference",
+}
+"""How the comparison figure states each verdict of `readout.agreement`."""
