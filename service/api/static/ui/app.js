@@ -540,7 +540,7 @@ function renderHeatmaps(rewards, current) {
       ? el(
           "div",
           { class: "uncertainty", "data-role": "uncertainty" },
-          el("img", { alt: `uncertainty of ${title}`, "data-reward": reward.reward_id }),
+          el("img", { alt: `uncertainty of ${title}`, "data-uncertainty": reward.reward_id }),
           el("span", { class: "stats" }, "spread across the ensemble's members (higher: less sure)"),
         )
       : null;
