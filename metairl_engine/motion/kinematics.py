@@ -227,7 +227,8 @@ def comparison_png(
 ) -> bytes:
     """One figure of a `compare` result: peak reach per direction of both sides on a polar plot (bands: 95 %
     intervals), then one panel per descriptor with b − a per direction and its interval, red where the
-    interval excludes 0. matplotlib is imported here only, and drawn on an Agg canvas without pyplot (no global
+    interval excludes 0; under it, each side's verdict on its learned readout (``learned.<side>.agreement``)
+    where the comparison carries one. matplotlib is imported here only, and drawn on an Agg canvas without pyplot (no global
     backend, safe in a server thread)."""
     import io
     import textwrap
@@ -287,8 +288,7 @@ def comparison_png(
         fontsize=10,
     )
     verdicts = [
-        f"{name}: the learned readout {VERDICT_PHRASES[learned['agreement']['verdict']]} "
-        f"— {learned['agreement']['detail']}"
+        f"{name}, learned readout — {learned['agreement']['verdict']}: {learned['agreement']['detail']}"
         for side, name in (("a", names[0]), ("b", names[1]))
         if (learned := (comparison.get("learned") or {}).get(side)) and learned.get("agreement")
     ]
@@ -297,11 +297,3 @@ def comparison_png(
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", bbox_inches="tight")
     return buffer.getvalue()
-
-
-VERDICT_PHRASES = {
-    "agrees": "agrees with the recordings",
-    "disagrees": "CONTRADICTS the recordings: not a preference",
-    "undetermined": "is not confirmed by the recordings: not a preference",
-}
-"""How the comparison figure states each verdict of `readout.agreement`."""
