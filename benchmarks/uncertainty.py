@@ -4,7 +4,8 @@ On worlds of each terrain generator of `ablation.GENERATORS` (the repo's, the fr
 one default fit of 8 tasks × 3 demonstrations; for each task reward, the learned reward is put on the true
 reward's scale by a least-squares affine fit (its level and scale are not identified), and the Spearman
 correlation between the spread (`FitResult.reward_spread`) and the absolute error is taken over the states
-other than the goal; the baseline likewise against −cost. Also the mean absolute error by evidence
+other than the goal; the baseline likewise against −cost; "relative spread" divides the spread by the
+state's distance from the reward's mean. Also the mean absolute error by evidence
 (`metairl_engine.evidence`: visited, next to a visit, elsewhere). Usage::
 
     .venv/bin/python benchmarks/uncertainty.py [--worlds 3] [--tasks 8] [--demos 3]
@@ -49,11 +50,16 @@ def score_world(generator: str, index: int, *, n_tasks: int, n_demos: int) -> di
     result = fit(tasks, FitConfig())
     wall = time.perf_counter() - started
     assert result.reward_spread is not None and result.baseline_spread is not None
-    rhos, errors = [], {VISITED: [], NEXT_TO_VISITED: [], 0.0: []}
+    rhos, relative, errors = [], [], {VISITED: [], NEXT_TO_VISITED: [], 0.0: []}
     for i, (sim, task) in enumerate(zip(chosen, tasks, strict=True)):
         mask = np.arange(world.mdp.n_states) != sim.goal
         error = absolute_error(result.rewards[i], sim.true_reward, mask)
-        rhos.append(spearmanr(result.reward_spread[i][mask], error)[0])
+        spread = result.reward_spread[i][mask]
+        rhos.append(spearmanr(spread, error)[0])
+        # the spread over the state's distance from the reward's mean: where the members cannot tell whether
+        # the state is better or worse than average
+        offset = np.abs(result.rewards[i][mask] - result.rewards[i][mask].mean())
+        relative.append(spearmanr(spread / (offset + 1e-6), error)[0])
         seen = evidence(world.mdp, task.trajectories)[mask]
         for level, found in errors.items():
             found.extend(error[seen == level])
@@ -61,6 +67,7 @@ def score_world(generator: str, index: int, *, n_tasks: int, n_demos: int) -> di
     base_error = absolute_error(result.baseline, -world.cost, every)
     return {
         "task_rho": float(np.mean(rhos)),
+        "relative_rho": float(np.mean(relative)),
         "baseline_rho": float(spearmanr(result.baseline_spread, base_error)[0]),
         **{f"error_{level}": float(np.mean(found)) if found else np.nan for level, found in errors.items()},
         "wall_s": wall,
@@ -76,9 +83,9 @@ def main() -> None:
     parser.add_argument("--generators", nargs="+", default=list(GENERATORS), choices=list(GENERATORS))
     args = parser.parse_args()
     lines = [
-        "| generator | worlds | Spearman(spread, abs error), tasks | baseline | abs error visited / next to "
-        "a visit / elsewhere | wall s per fit |",
-        "| --- | --- | --- | --- | --- | --- |",
+        "| generator | worlds | Spearman(spread, abs error), tasks | baseline | relative spread, tasks | abs error "
+        "visited / next to a visit / elsewhere | wall s per fit |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
     ]
     for g in args.generators:
         rows = [score_world(g, k, n_tasks=args.tasks, n_demos=args.demos) for k in range(args.worlds)]
@@ -90,6 +97,7 @@ def main() -> None:
 
         lines.append(
             f"| {g} | {args.worlds} | {mean('task_rho'):+.2f} | {mean('baseline_rho'):+.2f} | "
+            f"{mean('relative_rho'):+.2f} | "
             f"{mean(f'error_{VISITED}'):.3f} / {mean(f'error_{NEXT_TO_VISITED}'):.3f} / {mean('error_0.0'):.3f} | "
             f"{mean('wall_s'):.1f} |"
         )
