@@ -19,6 +19,11 @@ and the table, with the kinematic readout of the same recordings, replaces MOTIO
 
     python -m benchmarks.motion identify [--size 30] [--seed 0]
         [--generators planner controller controller-null] [--variants NAME ...] [--only-table]
+
+Whether the motion summary's verdict on the learned readout is right (docs/motion.md, "Does the learned
+readout agree with the recordings"), on the planner and on controllers weak left, right and forward left::
+
+    .venv/bin/python -m benchmarks.motion agreement [--size 30] [--seed 0] [--patients NAME ...]
 """
 
 from __future__ import annotations
@@ -36,13 +41,14 @@ from typing import Any
 
 import numpy as np
 import torch
+from scipy.stats import spearmanr
 
 from metairl_engine import FitConfig, Layout, Trajectory
 from metairl_engine.fit import FitResult, Progress, TaskData, fit
 from metairl_engine.grids import DIRECTION_NAMES, grid_mdp, velocity_coords
 from metairl_engine.metrics import pearson
-from metairl_engine.motion.kinematics import compare_recordings, comparison_png
-from metairl_engine.motion.readout import ring_centred
+from metairl_engine.motion.kinematics import compare_recordings, comparison_png, movements
+from metairl_engine.motion.readout import agreement, direction_readout, ring_centred
 from metairl_engine.motion.recording import DiscretiseSettings, demonstrations
 from metairl_engine.sim.controller_patient import ControllerSettings, simulate_controller_patient
 from metairl_engine.sim.patient import (
@@ -288,7 +294,7 @@ def main() -> None:
         print(f"{name}: {len(result.directions)} directions, {result.wall_s:.1f} s", flush=True)
         sessions.append(result)
     command = (
-        "python benchmarks/motion.py"
+        "python -m benchmarks.motion"
         + (f" --size {args.size}" if args.size != 100 else "")
         + (" --outward-only" if args.outward_only else "")
         + (
@@ -466,7 +472,7 @@ def identify_commands(entries: list[dict[str, Any]]) -> list[str]:
             "" if ran >= set(VARIANTS) else " --variants " + " ".join(f"'{v}'" for v in VARIANTS if v in ran)
         )
         out.append(
-            f"`python benchmarks/motion.py identify --size {size} --seed {seed} --generators {generator}{variants}`"
+            f"`python -m benchmarks.motion identify --size {size} --seed {seed} --generators {generator}{variants}`"
         )
     return out
 
@@ -556,8 +562,116 @@ def identify_main(argv: list[str]) -> None:
     print("\n".join(text))
 
 
+# --- does the learned readout agree with the recordings? ---------------------------------------------------
+
+AGREEMENT_PATIENTS: dict[str, str | None] = {
+    "planner": None,
+    "controller, weak left": "left",
+    "controller, weak right": "right",
+    "controller, weak forward left": "forward left",
+}
+"""``agreement``'s patients: the controller's weak side (None: the planner, `simulate_patient`). The forward-left controller was added for this check
+and never used to choose anything."""
+
+
+def agreement_one(patient: Any, session: str) -> dict[str, Any]:
+    """Fit one session with the default config; the learned per-direction readout, the same readout of the
+    patient's true preference (``ideal_reward``), their Spearman, and the verdict against the peak reach."""
+    w, h = patient.width, patient.height
+    rec = patient.sessions[session]
+    demos = demonstrations(rec, discretise_settings=DiscretiseSettings(width=w, height=h))
+    mdp = grid_mdp(width=w, height=h, velocity=True, gamma=GAMMA)
+    directions = [d for d in DIRECTION_NAMES if d in demos.by_label]
+    tasks = [TaskData(mdp=mdp, trajectories=demos.by_label[d], name=d) for d in directions]
+    started = time.perf_counter()
+    result = fit(tasks, FitConfig())
+    wall = time.perf_counter() - started
+    visited = {d: np.unique(np.concatenate([t.states for t in demos.by_label[d]])) for d in directions}
+    learned = direction_readout(result.baseline, visited, width=w, height=h)
+    truth = direction_readout(patient.ideal_reward, visited, width=w, height=h)
+    reach: dict[str, list[float]] = {}
+    for m in movements(rec):
+        reach.setdefault(m.direction, []).append(m.peak_reach)
+    verdict = agreement(learned, reach)
+    both = [d for d in directions if d in reach]
+    return {
+        "truth_reach": float(spearmanr([truth[d] for d in both], [np.mean(reach[d]) for d in both])[0]),
+        "learned": learned,
+        "truth": truth,
+        "spearman_truth": float(
+            spearmanr([learned[d] for d in directions], [truth[d] for d in directions])[0]
+        ),
+        "verdict": verdict.verdict,
+        "spearman_reach": verdict.spearman,
+        "detail": verdict.detail,
+        "wall_s": wall,
+    }
+
+
+def verdict_correct(verdict: str, rho: float) -> str:
+    """Whether a verdict is right about a readout whose Spearman with the truth is ``rho``: agrees needs ρ > 0,
+    disagrees ρ < 0; undetermined claims nothing."""
+    if verdict == "undetermined":
+        return "– (no claim)"
+    return "yes" if (rho > 0) == (verdict == "agrees") else "**no**"
+
+
+def agreement_main(argv: list[str]) -> None:
+    """``agreement``: per patient and session, the learned readout's Spearman with the true preference and the
+    verdict; the table replaces MOTION.md's agreement block."""
+    parser = argparse.ArgumentParser(
+        prog="motion.py agreement", description="learned readout vs truth, verdict"
+    )
+    parser.add_argument("--size", type=int, default=30)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--patients", nargs="+", default=list(AGREEMENT_PATIENTS), choices=list(AGREEMENT_PATIENTS)
+    )
+    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "MOTION.md")
+    args = parser.parse_args(argv)
+    torch.set_num_threads(1)
+    rows = []
+    for name in args.patients:
+        weak = AGREEMENT_PATIENTS[name]
+        patient = (
+            simulate("planner", args.size, args.seed)
+            if weak is None
+            else simulate_controller_patient(
+                ControllerSettings(width=args.size, height=args.size, seed=args.seed, weak_side=weak)
+            )
+        )
+        for session in patient.sessions:
+            found = agreement_one(patient, session)
+            print(f"{name} {session}: {json.dumps(found)}", flush=True)
+            rows.append(
+                f"| {name} | {session} | {found['spearman_truth']:+.2f} | {found['spearman_reach']:+.2f} | "
+                f"{found['truth_reach']:+.2f} | "
+                f"{found['verdict']} | {verdict_correct(found['verdict'], found['spearman_truth'])} | "
+                f"{found['wall_s']:.0f} s |"
+            )
+    text = [
+        "## Does the learned readout agree with the recordings?",
+        "",
+        f"`python -m benchmarks.motion agreement --size {args.size} --seed {args.seed}`: one fit per session with the "
+        "default config, gamma 0.9, on the service's out-and-back segments. **vs truth**: Spearman of the learned "
+        "per-direction readout (`direction_readout` of the baseline, the service's `baseline_ring_centred`) "
+        "with the same readout of the patient's true preference (`ideal_reward`). **vs reach**: Spearman of the "
+        "learned readout with the mean peak reach, which the verdict (`agreement`, docs/motion.md) tests; **truth vs "
+        "reach**: how well the reach ranks the true preference (what the rule assumes). A "
+        "verdict is right when `agrees` goes with ρ(truth) > 0 and `disagrees` with ρ(truth) < 0.",
+        "",
+        "| patient | session | vs truth | vs reach | truth vs reach | verdict | verdict right | wall |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+        *rows,
+    ]
+    write_block(args.out, "agreement", "\n".join(text))
+    print("\n".join(text))
+
+
 if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == "identify":
         identify_main(sys.argv[2:])
+    elif len(sys.argv) > 1 and sys.argv[1] == "agreement":
+        agreement_main(sys.argv[2:])
     else:
         main()

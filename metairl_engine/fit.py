@@ -550,7 +550,8 @@ def _evaluate(
 ) -> FitResult:
     """Rewards, values and policies of every task on every state from the kept networks (eq. 5–9).
 
-    With an ensemble, each quantity is the mean over the K members (policies: the members' mixture).
+    With an ensemble, each quantity is the mean over the K members (policies: the members' mixture), and
+    the rewards' spread across the members comes with them (`member_spread`).
     """
     all_states = np.arange(problem.n_states)
     n_members, n_tasks, n_states = problem.n_members, problem.n_tasks, problem.n_states
@@ -558,14 +559,14 @@ def _evaluate(
         chunks = [problem.inputs(all_states[i : i + EVAL_CHUNK]) for i in range(0, n_states, EVAL_CHUNK)]
         f = torch.cat([vr(c) for c in chunks], dim=1)  # (T·K, S)
         # Without sharing the baseline network is never trained: report the mean task reward instead.
-        baseline = (
+        base_members = (
             torch.cat(
                 [
                     base(problem.inputs(all_states[i : i + EVAL_CHUNK], base=True))
                     for i in range(0, n_states, EVAL_CHUNK)
                 ],
                 dim=1,
-            ).mean(dim=0)
+            )
             if config.sharing != "none"
             else None
         )
@@ -575,18 +576,36 @@ def _evaluate(
         ).to(problem.device)
         q_all = every_row(f).reshape(problem.n_nets, n_states, -1)
         values = backup(q_all, kind=config.backup, bgi_k=config.bgi_k)
-        rewards = (f - problem.gamma[:, None] * values).reshape(n_members, n_tasks, n_states).mean(dim=0)
+        members = (f - problem.gamma[:, None] * values).reshape(n_members, n_tasks, n_states)
+        rewards = members.mean(dim=0)
+        if base_members is None:
+            base_members = members.mean(dim=1)
         values = values.reshape(n_members, n_tasks, n_states).mean(dim=0)
         policies = torch.softmax(config.confidence * q_all, dim=-1)
         policies = policies.reshape(n_members, n_tasks, n_states, -1).mean(dim=0)
-        if baseline is None:
-            baseline = rewards.mean(dim=0)
     return FitResult(
-        baseline=baseline.cpu().numpy().astype(np.float32),
+        baseline=base_members.mean(dim=0).cpu().numpy().astype(np.float32),
         rewards=rewards.cpu().numpy().astype(np.float32),
         values=values.cpu().numpy().astype(np.float32),
         policies=policies.cpu().numpy().astype(np.float32),
         history=history,
         best_step=best_step,
         config=config,
+        baseline_spread=member_spread(base_members),
+        reward_spread=member_spread(members),
     )
+
+
+def member_spread(members: torch.Tensor) -> np.ndarray | None:
+    """Per state, the standard deviation across the ensemble's K members (dim 0) of their rewards, each put
+    on the ensemble mean's scale first by a least-squares affine fit over the states (a reward's level and
+    scale are not identified, so members that differ only so agree); float32 of shape ``members.shape[1:]``,
+    None with K = 1."""
+    if members.shape[0] < 2:
+        return None
+    centred = members - members.mean(dim=-1, keepdim=True)
+    mean = centred.mean(dim=0, keepdim=True)
+    slope = (centred * mean).sum(dim=-1, keepdim=True) / (centred**2).sum(dim=-1, keepdim=True).clamp_min(
+        1e-12
+    )
+    return (slope * centred).std(dim=0).cpu().numpy().astype(np.float32)

@@ -45,6 +45,9 @@ class FitResult:
     ``history`` has one `Progress` per step; ``best_step`` is the step whose parameters were kept (the
     parameters that step evaluated, before its update). ``baseline`` is the baseline network's reward, or
     the mean of the task rewards where no baseline is learned (``sharing="none"``, ``method="maxent"``).
+    ``baseline_spread`` (S,) and ``reward_spread`` (T, S): per state, the standard deviation of the
+    (mean-centred) reward across the ensemble's members, how much members fitted to different folds of
+    the demonstrations disagree there; None where one member was fitted (``ensemble`` 1, ``maxent``).
     """
 
     baseline: np.ndarray
@@ -54,3 +57,5 @@ class FitResult:
     history: list[Progress]
     best_step: int
     config: FitConfig
+    baseline_spread: np.ndarray | None = None
+    reward_spread: np.ndarray | None = None

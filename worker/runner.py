@@ -18,6 +18,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from metairl_engine.config import FitConfig
 from metairl_engine.errors import Cancelled, InvalidInput
+from metairl_engine.evidence import tasks_evidence
 from metairl_engine.fit import FitResult, TaskData, fit
 from service.jobs.transitions import owned_by, transition
 from service.results.rewards import add_reward
@@ -72,7 +73,7 @@ def run_attempt(job_id: str, attempt: int, monitor: Monitor) -> None:
         reason = explain_failure(exc, task_ids=task_ids, settings=settings)
         finish(make_session, job_id, attempt, JobStatus.FAILED, values={"error": reason}, message=reason)
     else:
-        store_results(make_session, job_id, attempt, result=result)
+        store_results(make_session, job_id, attempt, result=result, tasks=tasks)
 
 
 SMALL_PROBLEM = 20_000
@@ -203,9 +204,13 @@ def store_results(
     attempt: int,
     *,
     result: FitResult,
+    tasks: Sequence[TaskData] = (),
 ) -> None:
-    """Write every reward, value and policy and mark the job succeeded, in one transaction, if still owned."""
+    """Write every reward, value and policy, with each reward's spread across the ensemble's members and
+    the evidence the demonstrations of ``tasks`` give per state (none without tasks), and mark the job
+    succeeded, in one transaction, if still owned."""
     n_actions = result.policies.shape[2]
+    base_evidence, task_evidence = tasks_evidence(tasks) if tasks else (None, [None] * len(result.rewards))
     with make_session() as session:
         last = result.history[-1] if result.history else None
         done = transition(
@@ -221,7 +226,15 @@ def store_results(
             log.warning("job %s: attempt %d no longer owns the job; results discarded", job_id, attempt)
             return
         job = session.get_one(Job, job_id)
-        add_reward(session, job, ordinal=0, n_actions=n_actions, reward=result.baseline)
+        add_reward(
+            session,
+            job,
+            ordinal=0,
+            n_actions=n_actions,
+            reward=result.baseline,
+            uncertainty=result.baseline_spread,
+            evidence=base_evidence,
+        )
         for i in range(len(result.rewards)):
             add_reward(
                 session,
@@ -231,6 +244,8 @@ def store_results(
                 reward=result.rewards[i],
                 value=result.values[i],
                 policy=result.policies[i],
+                uncertainty=None if result.reward_spread is None else result.reward_spread[i],
+                evidence=task_evidence[i],
             )
         session.commit()
     log.info("job %s: succeeded", job_id)

@@ -227,9 +227,11 @@ def comparison_png(
 ) -> bytes:
     """One figure of a `compare` result: peak reach per direction of both sides on a polar plot (bands: 95 %
     intervals), then one panel per descriptor with b − a per direction and its interval, red where the
-    interval excludes 0. matplotlib is imported here only, and drawn on an Agg canvas without pyplot (no global
+    interval excludes 0; under it, each side's verdict on its learned readout (``learned.<side>.agreement``)
+    where the comparison carries one. matplotlib is imported here only, and drawn on an Agg canvas without pyplot (no global
     backend, safe in a server thread)."""
     import io
+    import textwrap
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -285,6 +287,13 @@ def comparison_png(
         ha="center",
         fontsize=10,
     )
+    verdicts = [
+        f"{name}, learned readout — {learned['agreement']['verdict']}: {learned['agreement']['detail']}"
+        for side, name in (("a", names[0]), ("b", names[1]))
+        if (learned := (comparison.get("learned") or {}).get(side)) and learned.get("agreement")
+    ]
+    if verdicts:  # the verdict beside the learned readout (docs/motion.md), never the readout alone
+        fig.text(0.0, -0.06, "\n".join(textwrap.fill(v, 190) for v in verdicts), va="top", fontsize=8)
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", bbox_inches="tight")
     return buffer.getvalue()

@@ -1,4 +1,4 @@
-"""What a velocity-grid baseline can say about a patient's inherent preference (numpy only).
+"""What a velocity-grid baseline can say about a patient's inherent preference, and whether the recordings back it (numpy, scipy).
 
 Out-and-back demonstrations of instruction k cover only the ray from the rest position along k. Along that
 ray, "move outward, then back" (the task) and any preference that changes with the distance from the rest
@@ -12,9 +12,15 @@ docs/motion.md (identifiability) and benchmarks/MOTION.md measure it.
 
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+from itertools import permutations
+from typing import Literal
 
-from metairl_engine.grids import velocity_coords
+import numpy as np
+from scipy.stats import rankdata
+
+from metairl_engine.grids import DIRECTION_NAMES, velocity_coords
 
 
 def ring_centred(
@@ -38,6 +44,18 @@ def ring_centred(
     return np.asarray(values - (sums / np.maximum(counts, 1))[bins])
 
 
+def direction_readout(
+    reward: np.ndarray, visited: Mapping[str, np.ndarray], *, width: int, height: int
+) -> dict[str, float]:
+    """Per direction, the mean of the `ring_centred` ``reward`` over the states that direction's
+    demonstrations visit (``visited`` {direction: state indices}); rings are centred over the union of
+    all of them. Higher: the reward favours that direction's path (the service's ``baseline_ring_centred``)."""
+    union = np.unique(np.concatenate([np.asarray(v, dtype=np.int64) for v in visited.values()]))
+    centred = np.zeros(int(np.asarray(reward).shape[0]))
+    centred[union] = ring_centred(reward, width=width, height=height, states=union)
+    return {d: float(centred[np.asarray(v, dtype=np.int64)].mean()) for d, v in visited.items() if len(v)}
+
+
 BASELINE_CAVEAT = (
     "Out-and-back movements identify how the baseline differs between directions and across each path, not "
     "how it changes with distance from the centre: moving out to the instructed distance is shared by every "
@@ -47,3 +65,117 @@ BASELINE_CAVEAT = (
     "only where its between-direction differences agree with it."
 )
 """What the API should say next to a baseline learned from recordings (docs/api.md, "Motion readout"); see docs/motion.md."""
+
+
+Verdict = Literal["agrees", "disagrees", "undetermined"]
+
+MIN_DIRECTIONS = 4
+"""The fewest directions a verdict ranks: below 4 no ranking is significant at 5 % (4! = 24 orders)."""
+
+ALPHA = 0.05
+"""One-sided level of the permutation test and of the bootstrap bound on Spearman's ρ."""
+
+
+@dataclass(frozen=True)
+class Agreement:
+    """Whether a learned per-direction readout is consistent with the peak reach the recordings show.
+
+    ``spearman``: ρ between the learned values and the mean peak reach across the directions both have
+    (None with fewer than `MIN_DIRECTIONS`); ``p_positive`` / ``p_negative``: exact one-sided permutation
+    p-values of that ρ; ``rho_low`` / ``rho_high``: its 95 % bootstrap interval over repetitions."""
+
+    verdict: Verdict
+    detail: str
+    spearman: float | None = None
+    p_positive: float | None = None
+    p_negative: float | None = None
+    rho_low: float | None = None
+    rho_high: float | None = None
+    n_directions: int = 0
+
+
+def _spearman_rows(ranked_learned: np.ndarray, reach: np.ndarray) -> np.ndarray:
+    """Spearman ρ of one rank vector (n,) with each row of ``reach`` (m, n) (average ranks for ties)."""
+    ranks = rankdata(reach, axis=-1)
+    a = ranked_learned - ranked_learned.mean()
+    b = ranks - ranks.mean(axis=-1, keepdims=True)
+    denominator = np.sqrt((a**2).sum() * (b**2).sum(axis=-1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(denominator > 0, (b @ a) / np.where(denominator > 0, denominator, 1.0), 0.0)
+
+
+def agreement(
+    learned: Mapping[str, float | None],
+    reach: Mapping[str, Sequence[float]],
+    *,
+    n_boot: int = 2000,
+    seed: int = 0,
+) -> Agreement:
+    """The verdict on a learned readout ``learned`` {direction: ring-centred baseline} against the peak reach
+    of every repetition ``reach`` {direction: [reach, …]} (docs/motion.md, "Does the learned readout agree").
+
+    ``agrees``: ρ(learned, mean reach) > 0 with exact permutation p ≤ `ALPHA` and a bootstrap interval over
+    repetitions above 0. ``disagrees``: the mirror image (ρ < 0, p ≤ `ALPHA`, interval below 0), or the
+    direction the readout favours most is the one reached least, its 95 % interval below every other
+    direction's (or the one it favours least is reached most, above every other's). Else ``undetermined``.
+    """
+    names = [d for d in DIRECTION_NAMES if learned.get(d) is not None and len(reach.get(d, ())) > 0]
+    n = len(names)
+    if n < MIN_DIRECTIONS:
+        return Agreement(
+            "undetermined",
+            f"Only {n} direction(s) have both a learned value and recorded movements; at least "
+            f"{MIN_DIRECTIONS} are needed to check the learned ranking against the recordings, so do not read "
+            "the learned readout as the patient's preference.",
+            n_directions=n,
+        )
+    values = np.array([float(learned[d]) for d in names])  # type: ignore[arg-type]
+    reps = [np.asarray(reach[d], dtype=np.float64) for d in names]
+    means = np.array([r.mean() for r in reps])
+    ranked = rankdata(values)
+    rho = float(_spearman_rows(ranked, means[None, :])[0])
+    orders = np.array(list(permutations(range(n))))  # n ≤ 8: at most 40,320 orders, exact
+    null = _spearman_rows(ranked, means[orders])  # ρ of the learned ranks with the reach shuffled
+    p_pos = float((null >= rho - 1e-12).mean())
+    p_neg = float((null <= rho + 1e-12).mean())
+    rng = np.random.default_rng(seed)
+    boot = np.stack([r[rng.integers(0, len(r), size=(n_boot, len(r)))].mean(axis=1) for r in reps], axis=1)
+    low, high = (float(q) for q in np.quantile(_spearman_rows(ranked, boot), [ALPHA / 2, 1 - ALPHA / 2]))
+    lows = np.array([np.quantile(b, ALPHA / 2) for b in boot.T])
+    highs = np.array([np.quantile(b, 1 - ALPHA / 2) for b in boot.T])
+    found = Agreement("undetermined", "", rho, p_pos, p_neg, low, high, n_directions=n)
+    stats = f"Spearman ρ = {rho:+.2f} over {n} directions, bootstrap 95 % interval [{low:+.2f}, {high:+.2f}]"
+    top, bottom = int(np.argmax(values)), int(np.argmin(values))
+    others_top, others_bottom = np.delete(np.arange(n), top), np.delete(np.arange(n), bottom)
+    if p_pos <= ALPHA and low > 0:
+        return replace(
+            found,
+            verdict="agrees",
+            detail=f"The learned readout ranks the directions as their peak reach does ({stats}, permutation "
+            f"p = {p_pos:.3f}): its between-direction differences are consistent with the recordings.",
+        )
+    if p_neg <= ALPHA and high < 0:
+        why = f"it ranks the directions against their peak reach ({stats}, permutation p = {p_neg:.3f})"
+    elif highs[top] < lows[others_top].min():
+        why = (
+            f"it favours {names[top]} most, the direction the patient reaches least (95 % interval of the "
+            f"peak reach below every other direction's)"
+        )
+    elif lows[bottom] > highs[others_bottom].max():
+        why = (
+            f"it favours {names[bottom]} least, the direction the patient reaches most (95 % interval of the "
+            f"peak reach above every other direction's)"
+        )
+    else:
+        return replace(
+            found,
+            detail=f"The recordings neither confirm nor contradict the learned ranking ({stats}, one-sided "
+            f"permutation p = {min(p_pos, p_neg):.3f}): do not read it as the patient's preference; read reach "
+            "and the weak side from the kinematic readout.",
+        )
+    return replace(
+        found,
+        verdict="disagrees",
+        detail=f"The learned readout contradicts the recordings: {why}. It is not the patient's preference; "
+        "read reach and the weak side from the kinematic readout.",
+    )

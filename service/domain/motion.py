@@ -4,7 +4,7 @@ into."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -69,12 +69,33 @@ class LearnedDirection(BaseModel):
     task_baseline_pearson: float = Field(description="Pearson r of task reward and baseline on those states.")
 
 
+class Agreement(BaseModel):
+    """Whether the learned per-direction readout is consistent with the recordings' peak reach
+    (docs/motion.md, "Does the learned readout agree with the recordings")."""
+
+    verdict: Literal["agrees", "disagrees", "undetermined"] = Field(
+        description="Contract. Only `agrees` lets the learned readout be read beside the kinematic one as a "
+        "preference; otherwise read reach and the weak side from the kinematic readout."
+    )
+    detail: str = Field(description="Contract: why, in a sentence, with the statistics behind it.")
+    spearman: float | None = Field(
+        default=None,
+        description="Spearman ρ of the learned values with the mean peak reach across directions.",
+    )
+    p_value: float | None = Field(
+        default=None, description="Exact one-sided permutation p-value of ρ, in the direction of its sign."
+    )
+
+
 class LearnedReadout(BaseModel):
     """The learned-reward readout of a demonstrator's latest succeeded job."""
 
     job_id: str
     baseline_reward_id: str | None
     caveat: str = Field(description="What a baseline learned from out-and-back movements can and cannot say.")
+    agreement: Agreement = Field(
+        description="Contract: the verdict on the learned readout against the recordings."
+    )
     directions: list[LearnedDirection] = Field(
         description="Tasks named by a direction on a velocity grid (as recordings make them)."
     )

@@ -6,7 +6,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-Quantity = Literal["reward", "value", "policy"]
+Quantity = Literal["reward", "value", "policy", "uncertainty", "evidence"]
 Format = Literal["json", "npy", "csv", "png"]
 Overlay = Literal["none", "demos"]
 
@@ -20,13 +20,21 @@ EXAMPLE_SUMMARY: dict[str, Any] = {
 }
 
 
-def reward_links(reward_id: str, *, drawable: bool, task: bool) -> dict[str, str]:
-    """Relative download links of one reward: each format (png only with a layout) and, for a task, key states."""
+def reward_links(
+    reward_id: str, *, drawable: bool, task: bool, stored: tuple[str, ...] = ("uncertainty", "evidence")
+) -> dict[str, str]:
+    """Relative download links of one reward: each format (png only with a layout), for a task its key
+    states, and each of the ``stored`` per-state quantities beside it (`uncertainty`, `evidence`) as json
+    and, with a layout, as ``<quantity>_png``."""
     links = {fmt: f"/v1/rewards/{reward_id}?format={fmt}" for fmt in ("json", "npy", "csv", "png")}
     if not drawable:
         del links["png"]
     if task:
         links["key_states"] = f"/v1/rewards/{reward_id}/key-states?top=10"
+    for quantity in stored:
+        links[quantity] = f"/v1/rewards/{reward_id}?quantity={quantity}&format=json"
+        if drawable:
+            links[f"{quantity}_png"] = f"/v1/rewards/{reward_id}?quantity={quantity}&format=png"
     return links
 
 

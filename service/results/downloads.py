@@ -23,7 +23,7 @@ from service.domain.rewards import (
 )
 from service.files import exports, images
 from service.problems import Conflict, Unprocessable
-from service.results.rewards import RewardContext, baseline_has_no, blob_id_of
+from service.results.rewards import RewardContext, blob_id_of, not_stored
 from service.store.blobs import blob_sha256, get_array
 from service.store.keys import KeyedQuery, in_key_lab, key_select
 from service.store.loaders import load_trajectories
@@ -118,6 +118,8 @@ def keyed_stored_file(quantity: Quantity, *, with_data: bool) -> KeyedQuery:
         "reward": Reward.reward_blob_id,
         "value": Reward.value_blob_id,
         "policy": Reward.policy_blob_id,
+        "uncertainty": Reward.uncertainty_blob_id,
+        "evidence": Reward.evidence_blob_id,
     }[quantity]
     columns: list[ColumnElement[Any]] = [
         Reward.id.label("reward_id"),
@@ -174,13 +176,13 @@ class StoredFile:
 
 def stored_file(found: Row[Any], reward_id: str, *, fmt: Format, quantity: Quantity) -> StoredFile:
     """The download a `keyed_stored_file` row describes; 404 if the key's lab has no reward `reward_id`, 409
-    for the baseline's (absent) value function or policy, as `download` answers."""
+    for a quantity the reward lacks (`not_stored`), as `download` answers."""
     if fmt not in STORED_FORMATS:
         raise ValueError(f"stored files are {sorted(STORED_FORMATS)}, not {fmt!r}")
     if found.reward_id is None:
         raise not_found("reward", reward_id)
     if found.blob_id is None:
-        raise baseline_has_no(quantity, found.reward_id)
+        raise not_stored(quantity, found.reward_id)
     filename = exports.download_filename(
         demonstrator=found.demonstrator_name,
         task=found.task_name if found.reward_task_id else None,

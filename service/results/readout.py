@@ -9,6 +9,7 @@ here writes to the database.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -17,7 +18,7 @@ from sqlalchemy.orm import Session
 
 from metairl_engine.grids import DIRECTION_NAMES
 from metairl_engine.motion.kinematics import Movement, compare, comparison_png, movements, summarise
-from metairl_engine.motion.readout import BASELINE_CAVEAT, ring_centred
+from metairl_engine.motion.readout import BASELINE_CAVEAT, Agreement, agreement, direction_readout
 from service.domain.motion import UNITS
 from service.problems import Conflict
 from service.results.engine_modules import metrics
@@ -56,7 +57,7 @@ def motion_summary(session: Session, demonstrator: Demonstrator) -> dict[str, An
         "units": UNITS,
         "n_recordings": n_recordings,
         **summarise(moves),
-        "learned": learned_readout(session, demonstrator),
+        "learned": learned_readout(session, demonstrator, moves),
     }
 
 
@@ -71,7 +72,7 @@ def motion_comparison(session: Session, a: Demonstrator, b: Demonstrator) -> dic
         "b": {"demonstrator_id": b.id, "name": b.name, **result["b"]},
         "units": UNITS,
         "directions": result["directions"],
-        "learned": {"a": learned_readout(session, a), "b": learned_readout(session, b)},
+        "learned": {"a": learned_readout(session, a, moves_a), "b": learned_readout(session, b, moves_b)},
         "links": {"png": "/v1/motion-comparisons?format=png"},
     }
 
@@ -99,12 +100,15 @@ def latest_succeeded_job(session: Session, demonstrator: Demonstrator) -> Job | 
     return session.execute(query).scalars().first()
 
 
-def learned_readout(session: Session, demonstrator: Demonstrator) -> dict[str, Any] | None:
+def learned_readout(
+    session: Session, demonstrator: Demonstrator, moves: Sequence[Movement]
+) -> dict[str, Any] | None:
     """The learned-reward readout of the demonstrator's latest succeeded job, per direction task (tasks named
-    by a direction, as recordings name them): ``baseline_ring_centred``, the mean over the task's visited
-    states of the baseline minus its mean at the same distance from the centre (`ring_centred`: the part of
-    the baseline out-and-back movements identify; higher = the baseline favours that direction's path), and
-    ``task_baseline_pearson`` on those states. None without a succeeded job."""
+    by a direction, as recordings name them): ``baseline_ring_centred`` (`direction_readout`: the mean over
+    the task's visited states of the baseline minus its mean at the same distance from the centre, the part
+    of the baseline out-and-back movements identify; higher = the baseline favours that direction's path),
+    ``task_baseline_pearson`` on those states, and the ``agreement`` of those values with the peak reach of
+    ``moves`` (`readout.agreement`). None without a succeeded job."""
     job = latest_succeeded_job(session, demonstrator)
     if job is None:
         return None
@@ -117,8 +121,9 @@ def learned_readout(session: Session, demonstrator: Demonstrator) -> dict[str, A
         "caveat": BASELINE_CAVEAT,
         "directions": [],
     }
-    if not rows:
-        return out
+    reach: dict[str, list[float]] = {}
+    for m in moves:
+        reach.setdefault(m.direction, []).append(m.peak_reach)
     tasks = {t.id: t for t in session.execute(select(Task).where(Task.id.in_(job.task_ids))).scalars()}
     direction_tasks = sorted(
         (
@@ -131,25 +136,37 @@ def learned_readout(session: Session, demonstrator: Demonstrator) -> dict[str, A
     first = tasks.get(job.task_ids[0]) if job.task_ids else None
     mdp = session.get(Mdp, first.mdp_id) if first is not None else None
     layout = (mdp.layout if mdp is not None else None) or {}
-    n_states = rows[0].n_states
-    if not direction_tasks or layout.get("channels") != 8:
+    if not rows or not direction_tasks or layout.get("channels") != 8:
+        out["agreement"] = agreement_body(agreement({}, reach))
         return out
+    n_states = rows[0].n_states
     baseline = get_array(session, rows[0].reward_blob_id).astype(np.float64)
-    visited = {task.id: visited_states(session, [task.id], n_states) for _, task in direction_tasks}
-    union = np.flatnonzero(np.logical_or.reduce(list(visited.values())))
-    centred = np.zeros(n_states)
-    centred[union] = ring_centred(baseline, width=layout["width"], height=layout["height"], states=union)
+    visited = {task.name: visited_states(session, [task.id], n_states) for _, task in direction_tasks}
+    learned = direction_readout(
+        baseline,
+        {d: np.flatnonzero(mask) for d, mask in visited.items()},
+        width=layout["width"],
+        height=layout["height"],
+    )
     for reward, task in direction_tasks:
-        mask = visited[task.id]
         values = get_array(session, reward.reward_blob_id).astype(np.float64)
         out["directions"].append(
             {
                 "direction": task.name,
                 "task_id": task.id,
                 "reward_id": reward.id,
-                "n_visited_states": int(mask.sum()),
-                "baseline_ring_centred": float(centred[mask].mean()) if mask.any() else None,
-                "task_baseline_pearson": metrics().pearson(values, baseline, mask=mask),
+                "n_visited_states": int(visited[task.name].sum()),
+                "baseline_ring_centred": learned.get(task.name),
+                "task_baseline_pearson": metrics().pearson(values, baseline, mask=visited[task.name]),
             }
         )
+    out["agreement"] = agreement_body(agreement(learned, reach))
     return out
+
+
+def agreement_body(found: Agreement) -> dict[str, Any]:
+    """The API's ``agreement`` object: verdict, detail, ρ and the permutation p-value in the sign's direction."""
+    p_value = None
+    if found.spearman is not None:
+        p_value = found.p_positive if found.spearman >= 0 else found.p_negative
+    return {"verdict": found.verdict, "detail": found.detail, "spearman": found.spearman, "p_value": p_value}

@@ -85,8 +85,11 @@ def add_reward(
     reward: np.ndarray,
     value: np.ndarray | None = None,
     policy: np.ndarray | None = None,
+    uncertainty: np.ndarray | None = None,
+    evidence: np.ndarray | None = None,
 ) -> Reward:
-    """Add one result row of `job` (ordinal 0: the baseline; i + 1: task i) with its arrays and summary.
+    """Add one result row of `job` (ordinal 0: the baseline; i + 1: task i) with its arrays and summary:
+    ``uncertainty`` the reward's spread across the ensemble's members, ``evidence`` the demonstrations'.
 
     The summary is computed here, once, so listing a job's rewards never loads their arrays.
     """
@@ -104,6 +107,8 @@ def add_reward(
         reward_blob_id=put_array(session, reward, lab_id=lab_id),
         value_blob_id=None if value is None else put_array(session, value, lab_id=lab_id),
         policy_blob_id=None if policy is None else put_array(session, policy, lab_id=lab_id),
+        uncertainty_blob_id=None if uncertainty is None else put_array(session, uncertainty, lab_id=lab_id),
+        evidence_blob_id=None if evidence is None else put_array(session, evidence, lab_id=lab_id),
         summary=exports.summary(reward),
     )
     session.add(row)
@@ -135,7 +140,19 @@ def job_rewards(session: Session, job: Job, *, exclude_top_truth: bool) -> JobRe
                 truth_pearson_excluding_top=(
                     pearson_below_top(values, truth) if exclude_top_truth and values is not None else None
                 ),
-                links=reward_links(row.id, drawable=ctx.layout is not None, task=ctx.task is not None),
+                links=reward_links(
+                    row.id,
+                    drawable=ctx.layout is not None,
+                    task=ctx.task is not None,
+                    stored=tuple(
+                        q
+                        for q, blob in (
+                            ("uncertainty", row.uncertainty_blob_id),
+                            ("evidence", row.evidence_blob_id),
+                        )
+                        if blob is not None
+                    ),
+                ),
                 note=None if ctx.task else baseline_note(job, ctx.layout),
             )
         )
@@ -186,17 +203,30 @@ def job_reward_rows(session: Session, job: Job) -> list[Reward]:
 
 
 def blob_id_of(row: Reward, quantity: Quantity) -> str:
-    """The blob holding `quantity` of `row`; 409 for the baseline's (absent) value function and policy."""
-    blob_id = {"reward": row.reward_blob_id, "value": row.value_blob_id, "policy": row.policy_blob_id}[
-        quantity
-    ]
+    """The blob holding `quantity` of `row`; 409 where the row has none (`not_stored`)."""
+    blob_id = {
+        "reward": row.reward_blob_id,
+        "value": row.value_blob_id,
+        "policy": row.policy_blob_id,
+        "uncertainty": row.uncertainty_blob_id,
+        "evidence": row.evidence_blob_id,
+    }[quantity]
     if blob_id is None:
-        raise baseline_has_no(quantity, row.id)
+        raise not_stored(quantity, row.id)
     return blob_id
 
 
-def baseline_has_no(quantity: Quantity, reward_id: str) -> Conflict:
-    """The 409 for the value function or policy of a baseline reward, which has neither."""
+def not_stored(quantity: Quantity, reward_id: str) -> Conflict:
+    """The 409 for a quantity a reward row lacks: a baseline's value function or policy, the spread of a fit
+    with one ensemble member, or what rows stored before it was kept lack."""
+    if quantity == "uncertainty":
+        return Conflict(
+            f"Reward {reward_id} has no uncertainty: its fit ran a single ensemble member (the maxent method, "
+            "config ensemble 1, or a large fit's automatic choice), so there is no spread across members, or "
+            "it was stored before the spread was kept. Rerun the job with config ensemble ≥ 2 to get one."
+        )
+    if quantity == "evidence":
+        return Conflict(f"Reward {reward_id} was stored before evidence was kept; rerun the job to get it.")
     return Conflict(
         f"Reward {reward_id} is the baseline, which has no {quantity}; ask a task's reward for its value or policy."
     )

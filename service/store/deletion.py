@@ -36,6 +36,8 @@ BLOB_COLUMNS = (
     Reward.reward_blob_id,
     Reward.value_blob_id,
     Reward.policy_blob_id,
+    Reward.uncertainty_blob_id,
+    Reward.evidence_blob_id,
 )
 """Every column that refers to a blob (MDPs refer to theirs through the JSON `array_blobs`)."""
 
@@ -139,9 +141,13 @@ def _delete_jobs(session: Session, job_ids: Collection[str]) -> None:
     blobs = [
         b
         for row in session.execute(
-            select(Reward.reward_blob_id, Reward.value_blob_id, Reward.policy_blob_id).where(
-                Reward.job_id.in_(job_ids)
-            )
+            select(
+                Reward.reward_blob_id,
+                Reward.value_blob_id,
+                Reward.policy_blob_id,
+                Reward.uncertainty_blob_id,
+                Reward.evidence_blob_id,
+            ).where(Reward.job_id.in_(job_ids))
         )
         for b in row
     ]

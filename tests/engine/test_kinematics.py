@@ -1,7 +1,10 @@
 """Kinematic readout: descriptors of known movements, bootstrap intervals, session comparison, figure."""
 
+from io import BytesIO
+
 import numpy as np
 import pytest
+from PIL import Image
 
 from metairl_engine.motion.kinematics import (
     DESCRIPTORS,
@@ -129,3 +132,15 @@ def test_motion_summary_pools_recordings() -> None:
 def test_comparison_figure_is_a_png(controller_comparison: dict) -> None:
     png = comparison_png(controller_comparison, names=("unstimulated", "stimulated"), units="m")
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+
+
+def test_comparison_figure_states_a_sides_verdict_on_its_learned_readout_under_the_panels(
+    controller_comparison: dict,
+) -> None:
+    verdict = {"verdict": "disagrees", "detail": "The learned readout contradicts the recordings."}
+    plain = comparison_png(controller_comparison, names=("a", "b"))
+    judged = comparison_png(
+        controller_comparison | {"learned": {"a": {"agreement": verdict}, "b": None}}, names=("a", "b")
+    )
+    height = {name: Image.open(BytesIO(png)).size[1] for name, png in (("plain", plain), ("judged", judged))}
+    assert height["judged"] > height["plain"]

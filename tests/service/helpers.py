@@ -114,12 +114,19 @@ def owned_resource_ids(app: FastAPI, client: TestClient, auth: dict[str, str]) -
 
 
 def store_results(
-    app: FastAPI, *, job_id: str, baseline: np.ndarray, task_rewards: list[np.ndarray], n_actions: int
+    app: FastAPI,
+    *,
+    job_id: str,
+    baseline: np.ndarray,
+    task_rewards: list[np.ndarray],
+    n_actions: int,
+    uncertainty: list[np.ndarray] | None = None,
+    evidence: list[np.ndarray] | None = None,
 ) -> list[str]:
     """Mark `job_id` succeeded with these rewards, as the worker would (no worker needed); their ids.
 
     Rows: the baseline, then one per task of the job in its order, each task with a value function
-    (twice its reward) and a uniform policy.
+    (twice its reward) and a uniform policy; ``uncertainty`` and ``evidence``, where given, one array per row.
     """
     with app.state.sessionmaker() as session:
         job = session.get_one(Job, job_id)
@@ -137,6 +144,8 @@ def store_results(
                 reward=values,
                 value=2 * values if task_id else None,
                 policy=policy if task_id else None,
+                uncertainty=None if uncertainty is None else uncertainty[ordinal],
+                evidence=None if evidence is None else evidence[ordinal],
             )
             ids.append(reward.id)
         job.status = JobStatus.SUCCEEDED.value

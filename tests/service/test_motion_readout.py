@@ -13,6 +13,7 @@ import pytest
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
+from metairl_engine.grids import DIRECTION_NAMES, velocity_coords
 from metairl_engine.motion.recording import Recording
 from metairl_engine.sim.controller_patient import ControllerSettings, simulate_controller_patient
 from tests.service.helpers import (
@@ -168,6 +169,47 @@ def test_comparison_and_summary_carry_each_sides_latest_learned_readout(
         assert row["baseline_ring_centred"] is not None
     summary = created(client.get(f"/v1/demonstrators/{b['id']}/motion-summary", headers=auth), 200)
     assert summary["learned"] == learned  # the summary carries the same readout of b's latest job
+    # three directions cannot be ranked with confidence: the verdict says so instead of endorsing the readout
+    assert (
+        learned["agreement"]["verdict"] == "undetermined" and "at least 4" in learned["agreement"]["detail"]
+    )
+
+
+FAN = {"right": 0.14, "forward right": 0.12, "forward": 0.10, "forward left": 0.08, "left": 0.06}
+"""Hand-made reach falling from right to left: five directions, clearly ordered."""
+
+
+def toward(favoured: str, *, size: int = 10) -> np.ndarray:
+    """A velocity-grid baseline that grows with the cosine between a cell's bearing from the centre and
+    ``favoured``: its readout ranks the directions by their angle from it."""
+    states = np.arange(8 * size * size)
+    x, y, _ = velocity_coords(states, width=size, height=size)
+    bearing = np.arctan2(y - (size - 1) / 2, x - (size - 1) / 2)
+    return np.cos(bearing - DIRECTION_NAMES.index(favoured) * np.pi / 4).astype(np.float32)
+
+
+@pytest.mark.parametrize(("favoured", "verdict"), [("right", "agrees"), ("left", "disagrees")])
+def test_the_verdict_says_whether_the_learned_readout_ranks_directions_as_the_reach_does(
+    app: FastAPI, client: TestClient, auth: dict[str, str], favoured: str, verdict: str
+) -> None:
+    dem = make_demonstrator(client, auth)
+    make_recording(client, auth, dem["id"], FAN)
+    job = created(client.post("/v1/jobs", json={"demonstrator_id": dem["id"]}, headers=auth), 202)
+    baseline = toward(favoured)
+    store_results(
+        app, job_id=job["id"], baseline=baseline, task_rewards=[baseline] * len(job["task_ids"]), n_actions=8
+    )
+    learned = created(client.get(f"/v1/demonstrators/{dem['id']}/motion-summary", headers=auth), 200)[
+        "learned"
+    ]
+    agreement = learned["agreement"]
+    assert agreement["verdict"] == verdict, agreement
+    assert isinstance(agreement["detail"], str) and agreement["detail"].endswith(".")
+    assert (agreement["spearman"] > 0) == (verdict == "agrees")
+    other = make_demonstrator(client, auth)
+    make_recording(client, auth, other["id"], FAN)
+    body = client.post("/v1/motion-comparisons", json={"a": other["id"], "b": dem["id"]}, headers=auth).json()
+    assert body["learned"]["b"]["agreement"] == agreement
 
 
 def test_another_labs_demonstrators_are_not_found(

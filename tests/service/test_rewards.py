@@ -23,7 +23,7 @@ from service.files.images import heatmap_pixel_size, heatmap_png
 from service.results.downloads import download
 from service.results.rewards import reward_context
 from service.store.models.jobs import Reward
-from tests.service.helpers import add_demonstrations, created, fitted_job, make_mdp, make_task
+from tests.service.helpers import add_demonstrations, created, fitted_job, make_mdp, make_task, store_results
 
 WIDTH, HEIGHT = 5, 4
 N_STATES = WIDTH * HEIGHT
@@ -367,3 +367,60 @@ def get_raw(
 ) -> Any:
     """The response of a download, whatever its status."""
     return client.get(f"/v1/rewards/{reward_id}", params=params, headers=auth | (headers or {}))
+
+
+def test_uncertainty_and_evidence_download_like_the_reward_in_every_format(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    mdp = grid(client, auth)
+    dem = created(client.post("/v1/demonstrators", json={"name": "spread"}, headers=auth))
+    task = make_task(client, auth, demonstrator_id=dem["id"], mdp_id=mdp["id"])
+    add_demonstrations(client, auth, task["id"], RIGHT)
+    job = created(client.post("/v1/jobs", json={"demonstrator_id": dem["id"]}, headers=auth), 202)
+    rewards = random_rewards(2, N_STATES)
+    spread = np.abs(random_rewards(2, N_STATES, seed=1))
+    seen = np.zeros((2, N_STATES), dtype=np.float32)
+    seen[:, [0, 1, 2, 3, 4, 10, 11, 12]] = 1.0
+    ids = store_results(
+        app,
+        job_id=job["id"],
+        baseline=rewards[0],
+        task_rewards=[rewards[1]],
+        n_actions=4,
+        uncertainty=list(spread),
+        evidence=list(seen),
+    )
+    for reward_id, mine, evidence in zip(ids, spread, seen, strict=True):
+        for quantity, expected in (("uncertainty", mine), ("evidence", evidence)):
+            body = get(client, auth, reward_id, quantity=quantity).json()
+            assert body["quantity"] == quantity and body["n_states"] == N_STATES
+            np.testing.assert_array_equal(np.asarray(body["values"], dtype=np.float32), expected)
+            npy = np.load(io.BytesIO(get(client, auth, reward_id, quantity=quantity, format="npy").content))
+            np.testing.assert_array_equal(npy, expected)
+            table = list(
+                csv.DictReader(
+                    io.StringIO(get(client, auth, reward_id, quantity=quantity, format="csv").text)
+                )
+            )
+            assert len(table) == N_STATES and quantity in table[0]
+            png = get(client, auth, reward_id, quantity=quantity, format="png")
+            assert png.headers["content-type"] == "image/png"
+    listing = created(client.get(f"/v1/jobs/{job['id']}/rewards", headers=auth), 200)
+    assert (
+        listing["baseline"]["links"]["uncertainty_png"]
+        == f"/v1/rewards/{ids[0]}?quantity=uncertainty&format=png"
+    )
+
+
+def test_a_reward_without_a_spread_says_why_with_a_409(
+    client: TestClient, auth: dict[str, str], job: dict[str, Any]
+) -> None:
+    for quantity, reason in (
+        ("uncertainty", "single ensemble member"),
+        ("evidence", "before evidence was kept"),
+    ):
+        for fmt in ("json", "npy", "png"):
+            response = get_raw(client, auth, job["reward_ids"][1], quantity=quantity, format=fmt)
+            assert response.status_code == 409 and reason in response.json()["detail"], (quantity, fmt)
+    listing = client.get(f"/v1/jobs/{job['job_id']}/rewards", headers=auth).json()
+    assert "uncertainty" not in listing["tasks"][0]["links"]

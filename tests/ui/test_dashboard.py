@@ -220,7 +220,12 @@ def test_dashboard_follows_a_real_job_from_queued_to_succeeded_and_shows_its_rew
     ours.locator("[data-action='results']").click()
     page.wait_for_selector(f"#results[data-job='{job_id}']")
     page.wait_for_function(
-        "() => { const imgs = [...document.querySelectorAll('#heatmaps img')];"
+        "() => { const imgs = [...document.querySelectorAll('#heatmaps img[data-reward]')];"
+        " return imgs.length === 3 && imgs.every(i => i.complete && i.naturalWidth > 0); }"
+    )
+    # Beside each reward, the spread of the ensemble's members (a small fit has several).
+    page.wait_for_function(
+        "() => { const imgs = [...document.querySelectorAll(\"#heatmaps [data-role='uncertainty'] img\")];"
         " return imgs.length === 3 && imgs.every(i => i.complete && i.naturalWidth > 0); }"
     )
     kinds = page.locator("#heatmaps figure").evaluate_all("fs => fs.map(f => f.dataset.rewardKind)")

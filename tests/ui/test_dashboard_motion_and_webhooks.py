@@ -124,6 +124,10 @@ def test_dashboard_reads_out_a_sessions_motion_beside_its_learned_rewards_and_co
     assert sorted(directions(page, "#learned")) == sorted(UNSTIMULATED)
     assert job_id in page.locator("#learned .learned-job").inner_text()
     assert "distance from the centre" in page.locator("#learned [data-role='caveat']").inner_text()
+    # Above it, the verdict of the API on it against the recordings, in the API's words.
+    verdict = page.locator("#learned [data-role='agreement']")
+    assert verdict.get_attribute("data-verdict") == summary["learned"]["agreement"]["verdict"]
+    assert summary["learned"]["agreement"]["detail"] in verdict.inner_text()
 
     # The session comparison: the other recorded demonstrator is b; the figure and b − a per direction.
     assert page.locator("#compare-with").input_value() == after
@@ -148,7 +152,7 @@ def test_dashboard_reads_out_a_sessions_motion_beside_its_learned_rewards_and_co
     note.locator("summary").click()
     assert "distance from the centre" in note.inner_text()
     page.wait_for_function(
-        "() => { const imgs = [...document.querySelectorAll('#heatmaps img')];"
+        "() => { const imgs = [...document.querySelectorAll('#heatmaps img[data-reward]')];"
         " return imgs.length === 4 && imgs.every(i => i.complete && i.naturalWidth > 0); }"
     )
     assert page.locator("#heatmaps figure.task [data-role='note']").count() == 0

@@ -55,8 +55,8 @@ def job_rewards(
         },
         304: {"description": "`If-None-Match` names the current ETag: your copy is up to date."},
         409: {
-            "description": "The baseline has no value or policy; a PNG of an MDP without a layout or of a "
-            "policy cannot be drawn."
+            "description": "The baseline has no value or policy; a fit with one ensemble member has no "
+            "uncertainty; a PNG of an MDP without a layout or of a policy cannot be drawn."
         },
     },
 )
@@ -68,7 +68,12 @@ async def download_reward(
         Format, Query(description="`json` (default), `npy` (float32), `csv` or `png`.")
     ] = "json",
     quantity: Annotated[
-        Quantity, Query(description="`reward`, or a task's `value` function or `policy` (S×A; no png).")
+        Quantity,
+        Query(
+            description="`reward`, or a task's `value` function or `policy` (S×A; no png); `uncertainty`: "
+            "the reward's spread across the ensemble's members per state; `evidence`: 1 where the "
+            "demonstrations pass, 0.5 one move from there, 0 elsewhere."
+        ),
     ] = "reward",
     overlay: Annotated[
         Overlay, Query(description="png only: `demos` draws the demonstrated trajectories on the map.")

@@ -119,5 +119,10 @@ class Reward(CreatedAtMixin, Base):
     reward_blob_id: Mapped[str] = mapped_column(String(ID_LENGTH), ForeignKey("blobs.id"))
     value_blob_id: Mapped[str | None] = mapped_column(String(ID_LENGTH), ForeignKey("blobs.id"))
     policy_blob_id: Mapped[str | None] = mapped_column(String(ID_LENGTH), ForeignKey("blobs.id"))
+    uncertainty_blob_id: Mapped[str | None] = mapped_column(String(ID_LENGTH), ForeignKey("blobs.id"))
+    """The reward's spread across the ensemble's members per state (`FitResult.reward_spread`); None with
+    one member, or for rows stored before it was kept."""
+    evidence_blob_id: Mapped[str | None] = mapped_column(String(ID_LENGTH), ForeignKey("blobs.id"))
+    """Per state, the demonstrations' evidence (`metairl_engine.evidence`); None for rows stored before it was kept."""
     summary: Mapped[dict[str, Any]] = mapped_column(JSON)
     """min, max, mean, std, argmax_state, argmin_state of the reward (`service.files.exports.summary`)."""

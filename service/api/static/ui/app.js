@@ -537,6 +537,15 @@ function renderHeatmaps(rewards, current) {
     const picture = reward.links.png
       ? el("img", { alt: `heatmap of ${title}`, "data-reward": reward.reward_id })
       : el("div", { class: "nopic" }, "No layout on this MDP, so no heatmap (download JSON or CSV).");
+    // Beside the reward, how much the ensemble's members disagree on it per state: where it is least sure.
+    const spread = reward.links.uncertainty_png
+      ? el(
+          "div",
+          { class: "uncertainty", "data-role": "uncertainty" },
+          el("img", { alt: `uncertainty of ${title}`, "data-uncertainty": reward.reward_id }),
+          el("span", { class: "stats" }, "spread across the ensemble's members (higher: less sure)"),
+        )
+      : null;
     const card = el(
       "figure",
       { class: `heatmap ${reward.kind}`, "data-reward-kind": reward.kind },
@@ -550,8 +559,10 @@ function renderHeatmaps(rewards, current) {
       ),
       // How to read this reward, where the API says it needs saying (a velocity-grid baseline, sharing none).
       reward.note ? el("details", { class: "note", "data-role": "note" }, el("summary", {}, "How to read this baseline"), reward.note) : null,
+      spread,
     );
     if (reward.links.png) loadImage(picture, "results", current, reward.links.png);
+    if (spread) loadImage(spread.querySelector("img"), "results", current, reward.links.uncertainty_png);
     return card;
   });
   $("heatmaps").replaceChildren(...cards);
@@ -727,7 +738,9 @@ async function renderLearned(learned, current) {
   if (!current()) return;
   const truth = new Map(rewards.tasks.map((t) => [t.task_id, t.truth_pearson]));
   const withTruth = learned.directions.some((d) => truth.get(d.task_id) !== null && truth.get(d.task_id) !== undefined);
-  const heads = ["direction", "visited states", "baseline, ring-centred", "r(task, baseline)"];
+  const verdict = renderAgreement(learned.agreement);
+  const preference = learned.agreement.verdict === "agrees" ? "baseline, ring-centred" : "baseline, ring-centred (not a preference)";
+  const heads = ["direction", "visited states", preference, "r(task, baseline)"];
   const table = learned.directions.length
     ? el(
         "table",
@@ -759,8 +772,26 @@ async function renderLearned(learned, current) {
       " ",
       el("button", { class: "small quiet", "data-action": "results", onclick: () => showResults(learned.job_id, { scroll: true }) }, "Heatmaps"),
     ),
+    verdict,
     table,
     el("p", { class: "caveat", "data-role": "caveat" }, learned.caveat),
+  );
+}
+
+// The verdict on the learned readout against the recordings, shown above it: only "agrees" lets the table be
+// read as the patient's preference (docs/motion.md).
+function renderAgreement(agreement) {
+  const headline = {
+    agrees: "The learned readout agrees with the recordings.",
+    disagrees: "The learned readout contradicts the recordings: it is not the patient's preference.",
+    undetermined: "The recordings do not confirm the learned readout: it is not shown to be the patient's preference.",
+  }[agreement.verdict];
+  return el(
+    "div",
+    { class: `agreement ${agreement.verdict}`, "data-role": "agreement", "data-verdict": agreement.verdict },
+    el("strong", {}, headline),
+    " ",
+    agreement.detail,
   );
 }
 
