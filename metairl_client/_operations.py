@@ -17,7 +17,7 @@ from metairl_client._models import JobRewardIds, JobState, Page, Trajectory
 from metairl_client._transport import Call
 
 RewardFormat = Literal["json", "npy", "csv", "png"]
-Quantity = Literal["reward", "value", "policy"]
+Quantity = Literal["reward", "value", "policy", "uncertainty", "evidence"]
 JobStatusName = Literal["queued", "running", "succeeded", "failed", "cancelled"]
 WebhookEvent = Literal["job.succeeded", "job.failed", "job.cancelled"]
 Protocol = Literal["movements", "standing"]
