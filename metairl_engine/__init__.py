@@ -1,13 +1,16 @@
 """metairl_engine: meta inverse reinforcement learning via maximum reward sharing (Li & Burdick).
 
-A plain library (numpy + torch, no web, no database). Importing the package imports neither torch
-nor the fit: the numpy-only modules (`mdp`, `demos`, `config`, `errors`, `grids`, `metrics`) are
-what the API process uses; `metairl_engine.fit` brings in torch.
+A plain library (numpy + torch, no web, no database), usable from a notebook (docs/notebook.md):
+``from metairl_engine import fit, grid_mdp, TaskData, Trajectory``. Importing the package imports neither
+torch nor the fit: the numpy-only modules (`mdp`, `demos`, `config`, `errors`, `grids`, `metrics`) are what
+the API process uses. ``from metairl_engine import fit`` imports the module `metairl_engine.fit` (and torch),
+which is callable as its function `fit`.
 """
 
 from metairl_engine.config import FitConfig
 from metairl_engine.demos import Trajectory, validate_trajectories
 from metairl_engine.errors import Cancelled, EngineError, InvalidInput, Issue
+from metairl_engine.grids import grid_mdp
 from metairl_engine.mdp import MDP, Layout, SparseTransitions
 from metairl_engine.results import FitResult, Progress, TaskData
 
@@ -24,5 +27,7 @@ __all__ = [
     "SparseTransitions",
     "TaskData",
     "Trajectory",
+    "fit",
+    "grid_mdp",
     "validate_trajectories",
 ]

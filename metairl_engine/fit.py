@@ -16,8 +16,11 @@ kept are those of the step with the best held-out NLL (holdout.py explains why).
 
 from __future__ import annotations
 
+import sys
 import time
+import types
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 import torch
@@ -609,3 +612,20 @@ def member_spread(members: torch.Tensor) -> np.ndarray | None:
         1e-12
     )
     return (slope * centred).std(dim=0).cpu().numpy().astype(np.float32)
+
+
+class _CallableModule(types.ModuleType):
+    """This module, callable as its `fit`: the package exports the function `fit` under the module's own name,
+    and Python binds that name to the module once the module is imported, so either way
+    ``from metairl_engine import fit; fit(tasks, config)`` runs the fit."""
+
+    def __call__(
+        self,
+        tasks: Sequence[TaskData],
+        config: FitConfig = FitConfig(),
+        **options: Any,
+    ) -> FitResult:
+        return fit(tasks, config, **options)
+
+
+sys.modules[__name__].__class__ = _CallableModule

@@ -5,8 +5,10 @@ Plain dataclasses over numpy arrays (no torch), importable from `metairl_engine.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -59,3 +61,35 @@ class FitResult:
     config: FitConfig
     baseline_spread: np.ndarray | None = None
     reward_spread: np.ndarray | None = None
+
+    ARRAYS = ("baseline", "rewards", "values", "policies", "baseline_spread", "reward_spread")
+    """The fields saved as arrays (the rest, config, history and best step, as JSON beside them)."""
+
+    def save(self, path: str | Path) -> None:
+        """Write this result to one ``.npz`` file (arrays as they are; config, history and best step as JSON)."""
+        arrays = {name: getattr(self, name) for name in self.ARRAYS if getattr(self, name) is not None}
+        meta = {
+            "config": self.config.to_dict(),
+            "best_step": self.best_step,
+            "history": [asdict(p) for p in self.history],
+        }
+        with open(path, "wb") as file:
+            np.savez_compressed(file, **arrays, meta=np.array(json.dumps(meta)))
+
+    @classmethod
+    def load(cls, path: str | Path) -> FitResult:
+        """A result written by `save` (no pickles are read)."""
+        with np.load(path, allow_pickle=False) as stored:
+            meta = json.loads(str(stored["meta"]))
+            arrays = {name: stored[name] for name in cls.ARRAYS if name in stored}
+        return cls(
+            baseline=arrays["baseline"],
+            rewards=arrays["rewards"],
+            values=arrays["values"],
+            policies=arrays["policies"],
+            baseline_spread=arrays.get("baseline_spread"),
+            reward_spread=arrays.get("reward_spread"),
+            history=[Progress(**p) for p in meta["history"]],
+            best_step=meta["best_step"],
+            config=FitConfig.from_dict(meta["config"]),
+        )

@@ -129,6 +129,17 @@ def test_a_failing_example_fails_with_its_file_and_line(app: FastAPI, api_key: s
     assert (Path(entry.path).name, entry.lineno + 1) == ("fake.md", 10)
 
 
+def test_the_notebook_page_runs_in_a_plain_python_session(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """docs/notebook.md uses the engine alone: its blocks run in order in one namespace, no app involved."""
+    monkeypatch.chdir(tmp_path)  # the page saves a file
+    namespace: dict[str, Any] = {}
+    for block in blocks("docs/notebook.md", "python"):
+        exec(compile("\n" * (block.line - 1) + block.code, block.path, "exec"), namespace)
+    assert (tmp_path / "two-walks.npz").exists()
+
+
 # ---------------------------------------------------------------- python blocks, with a real worker
 
 
