@@ -13,9 +13,11 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import secrets
 import shlex
+import subprocess
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -373,3 +375,28 @@ def test_every_job_config_field_is_in_the_api_guide_with_its_default() -> None:
     text = (REPO / "docs/api.md").read_text(encoding="utf-8")
     rows = {name: json.loads(default) for name, default in CONFIG_ROW.findall(text)}
     assert rows == FitConfig().to_dict(), "docs/api.md's config table differs from FitConfig's defaults"
+
+
+# ---------------------------------------------------------------- the README's curl walk-through, for real
+
+
+@pytest.mark.worker
+@pytest.mark.slow
+def test_the_readme_curl_block_runs_against_metairl_serve(tmp_path: Path) -> None:
+    """README's curl quickstart, as a bash script with ``set -e``, against a real `metairl serve` (API and
+    worker): it must reach a succeeded job and save a real PNG."""
+    from tests.served import metairl_serve
+
+    (script,) = [b for b in blocks("README.md", "bash") if "/v1/jobs" in b.code]
+    with metairl_serve(tmp_path) as served:
+        done = subprocess.run(
+            ["bash", "-euo", "pipefail", "-c", script.code],
+            cwd=tmp_path,
+            env={**os.environ, "URL": served.url, "METAIRL_API_KEY": served.key},
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "succeeded" in done.stdout
+    assert (tmp_path / "baseline.png").read_bytes().startswith(b"\x89PNG")
