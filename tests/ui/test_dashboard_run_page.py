@@ -29,7 +29,7 @@ from tests.served import Served, metairl_serve
 from tests.ui.helpers import ARTIFACTS, ok, open_dashboard
 
 if TYPE_CHECKING:
-    from playwright.sync_api import Browser, Page
+    from playwright.sync_api import Browser, Page, Route
 
 pytestmark = [pytest.mark.worker, pytest.mark.slow, pytest.mark.browser]
 
@@ -167,6 +167,25 @@ def test_results_of_16_tasks_never_overlap_and_a_heatmap_opens_full_size(
     assert shown is not None and big is not None and big["width"] > shown["width"]
     page.keyboard.press("Escape")
     page.wait_for_selector("#lightbox", state="hidden")
+    assert errors == []
+
+
+def test_a_heatmap_shows_a_placeholder_not_a_broken_image_until_it_has_loaded(
+    demo: Demo, browser: Browser
+) -> None:
+    page, errors = dashboard(browser, demo)
+    held: list[Route] = []
+    page.route(lambda url: "format=png" in url, lambda route: held.append(route))
+    page.locator(f"tr[data-job='{demo.ids['two']}'] [data-action='results']").click()
+    page.wait_for_function("() => document.querySelectorAll('#heatmaps img').length === 3")
+    while len(held) < 3:
+        page.wait_for_timeout(50)
+    assert page.locator("#heatmaps [data-role='placeholder']").count() == 3
+    assert page.locator("#heatmaps img:visible").count() == 0  # nothing shown half-loaded or broken
+    for route in held:
+        route.continue_()
+    page.wait_for_selector("#heatmaps [data-role='placeholder']", state="detached")
+    assert page.locator("#heatmaps img:visible").count() == 3
     assert errors == []
 
 

@@ -1589,13 +1589,19 @@ function renderConfigFields() {
   $("submit-config").replaceChildren(
     ...Object.entries(props).map(([name, schema]) => {
       const shown = JSON.stringify(defaultOf(schema));
-      const range = [schema.minimum !== undefined ? `≥ ${schema.minimum}` : "", schema.maximum !== undefined ? `≤ ${schema.maximum}` : ""].filter(Boolean).join(", ");
+      const range = settingRange(schema);
       const input = schema.enum
         ? el("select", { name }, el("option", { value: "" }, `${schema.default} (default)`), schema.enum.filter((v) => v !== schema.default).map((v) => el("option", { value: JSON.stringify(v) }, v)))
         : el("input", { name, placeholder: shown, inputmode: schema.type === "number" || schema.type === "integer" ? "decimal" : undefined, spellcheck: "false" });
       return el("label", { class: "config-field", title: `${schema.description || ""}${range ? ` (${range})` : ""}`, "data-setting": name }, el("span", {}, name, range ? el("small", {}, ` ${range}`) : null), input);
     }),
   );
+}
+
+// "≥ 0, < 1": a setting's bounds as the schema states them (inclusive or exclusive).
+function settingRange(schema) {
+  const bound = (key, sign) => (schema[key] === undefined ? "" : `${sign} ${schema[key] >= 1e6 ? schema[key].toExponential(1) : schema[key]}`);
+  return [bound("minimum", "≥"), bound("exclusiveMinimum", ">"), bound("maximum", "≤"), bound("exclusiveMaximum", "<")].filter(Boolean).join(", ");
 }
 
 // The settings typed in: JSON where it parses (numbers, lists, null), else the text as a string.
