@@ -189,6 +189,80 @@ def test_a_heatmap_shows_a_placeholder_not_a_broken_image_until_it_has_loaded(
     assert errors == []
 
 
+def two_channel_demonstrator(http: httpx.Client) -> str:
+    """A demonstrator with two tasks on a 3×2 grid with two channels (action 0 moves right along the row,
+    wrapping; action 1 switches channel); each task walks to one cell of channel 1; its id."""
+    width, height, channels = 3, 2, 2
+    n = width * height * channels
+
+    def move(s: int, a: int) -> int:
+        c, rest = divmod(s, width * height)
+        y, x = divmod(rest, width)
+        return (1 - c) * width * height + rest if a else c * width * height + y * width + (x + 1) % width
+
+    mdp = ok(
+        http.post(
+            "/v1/mdps",
+            json={
+                "kind": "explicit",
+                "name": "two channels",
+                "n_states": n,
+                "n_actions": 2,
+                "gamma": 0.9,
+                "transitions": {
+                    "kind": "deterministic",
+                    "next_state": [[move(s, a) for a in (0, 1)] for s in range(n)],
+                },
+                "layout": {"width": width, "height": height, "channels": channels},
+            },
+        )
+    )
+    dem = ok(http.post("/v1/demonstrators", json={"name": "two channels"}))
+    for name, goal_x in (("channel 1, x 2", 2), ("channel 1, x 1", 1)):
+        task = ok(http.post(f"/v1/demonstrators/{dem['id']}/tasks", json={"name": name, "mdp_id": mdp["id"]}))
+        trajectories = []
+        for start in range(width):
+            actions = [1] + [0] * ((goal_x - start) % width)
+            states = [start]
+            for a in actions:
+                states.append(move(states[-1], a))
+            trajectories.append({"states": states, "actions": actions})
+        ok(http.post(f"/v1/tasks/{task['id']}/demonstrations", json={"trajectories": trajectories}))
+    return str(dem["id"])
+
+
+def test_the_lightbox_draws_one_channel_of_a_reward_at_full_size(demo: Demo, browser: Browser) -> None:
+    job_id = submit(demo.http, two_channel_demonstrator(demo.http), FAST)
+    wait_for(demo.http, [job_id])
+    task = ok(demo.http.get(f"/v1/jobs/{job_id}/rewards"), 200)["tasks"][0]
+    values = ok(demo.http.get(f"/v1/rewards/{task['reward_id']}?format=json"), 200)["values"]
+    best = max(range(len(values)), key=values.__getitem__)
+    channel, rest = divmod(best, 6)
+    y, x = divmod(rest, 3)
+    page, errors = dashboard(browser, demo)
+    page.locator(f"tr[data-job='{job_id}'] [data-action='results']").click()
+    page.wait_for_function(
+        "() => [...document.querySelectorAll('#heatmaps img')].every(i => i.naturalWidth > 0)"
+    )
+    page.locator("#heatmaps img").nth(1).click()
+    buttons = page.locator("#lightbox-channels button").evaluate_all("bs => bs.map(b => b.dataset.channel)")
+    assert buttons == ["all", "0", "1"]
+    page.click(f"#lightbox-channels button[data-channel='{channel}']")
+    canvas = page.locator(f"#lightbox-canvas[data-channel='{channel}']")
+    canvas.wait_for()
+    size = canvas.evaluate("c => [c.width, c.height]")
+    assert size[0] * 2 == size[1] * 3 and size[0] >= 300  # 3×2 cells, enlarged
+    colour = canvas.evaluate(
+        "(c, [x, y]) => { const cell = c.width / 3;"
+        " return [...c.getContext('2d').getImageData((x + .5) * cell, (1 - y + .5) * cell, 1, 1).data].slice(0, 3); }",
+        [x, y],
+    )
+    assert colour == [253, 231, 37]  # the highest reward, yellow at the top of the colour map
+    page.click("#lightbox-channels button[data-channel='all']")
+    assert page.locator("#lightbox-img").is_visible() and page.locator("#lightbox-canvas").is_hidden()
+    assert errors == []
+
+
 def test_a_job_submitted_from_the_form_is_created_with_the_settings_typed(
     demo: Demo, browser: Browser
 ) -> None:

@@ -42,6 +42,7 @@ const state = {
   runCall: 0, // bumped by each showRun, so an earlier call's late answers never redraw the run page
   configSchema: null, // JobConfig's properties from /openapi.json (defaults, ranges, descriptions)
   mdps: [],
+  lightboxCall: 0, // bumped by each channel drawn or lightbox closed, so a late reward never draws over it
 };
 
 class ApiError extends Error {
@@ -559,6 +560,7 @@ async function showResults(id, { scroll = false } = {}) {
 }
 
 function renderHeatmaps(rewards, current) {
+  const layout = rewards.tasks.length ? layoutOfTask(rewards.tasks[0].task_id) : null;
   const cards = [rewards.baseline, ...rewards.tasks].map((reward) => {
     const title = reward.kind === "baseline" ? "baseline (shared)" : reward.task_name || reward.task_id;
     const s = reward.summary;
@@ -582,7 +584,7 @@ function renderHeatmaps(rewards, current) {
     if (reward.links.png) {
       picture.classList.add("zoomable");
       picture.title = "Open full size";
-      picture.addEventListener("click", () => openLightbox(picture.src, title));
+      picture.addEventListener("click", () => openLightbox(picture.src, title, layout && layout.channels > 1 ? { reward, layout } : null));
       loadImage(picture, "results", current, reward.links.png);
     }
     return card;
@@ -1517,8 +1519,12 @@ async function renderDownloads(job) {
 
 // ---- lightbox: a heatmap at full size ------------------------------------------------------------
 
-function openLightbox(src, title) {
+// The picture at its natural size; with ``channels`` ({reward, layout} of a layout with several channels)
+// also a button per channel that draws that channel alone, filling the screen.
+function openLightbox(src, title, channels) {
   if (!src) return;
+  showWholePicture();
+  renderChannelButtons(channels);
   $("lightbox-img").src = src;
   $("lightbox-img").alt = `heatmap of ${title}, full size`;
   $("lightbox-title").textContent = title;
@@ -1528,6 +1534,7 @@ function openLightbox(src, title) {
 
 function closeLightbox() {
   $("lightbox").hidden = true;
+  state.lightboxCall += 1;
   $("lightbox-img").removeAttribute("src");
 }
 
@@ -1699,3 +1706,74 @@ document.addEventListener("DOMContentLoaded", () => {
     if (event.key === "Escape" && !$("lightbox").hidden) closeLightbox();
   });
 });
+
+// ---- heatmap channels: one channel of a reward at full size, drawn from its values ----------------
+
+// Viridis (matplotlib's default colour map, as the server's heatmaps use) at five stops, interpolated.
+const VIRIDIS = [[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]];
+
+function viridis(t) {
+  const u = Math.min(1, Math.max(0, t)) * (VIRIDIS.length - 1);
+  const i = Math.min(VIRIDIS.length - 2, Math.floor(u));
+  const [a, b] = [VIRIDIS[i], VIRIDIS[i + 1]];
+  return `rgb(${a.map((c, k) => Math.round(c + (b[k] - c) * (u - i))).join(",")})`;
+}
+
+// The layout of the MDP a task is on (from the MDPs listed), or null.
+function layoutOfTask(taskId) {
+  for (const d of state.demonstrators.values()) {
+    const task = d.tasks.find((t) => t.id === taskId);
+    if (task) return state.mdps.find((m) => m.id === task.mdp_id)?.layout || null;
+  }
+  return null;
+}
+
+function renderChannelButtons(channels) {
+  const bar = $("lightbox-channels");
+  bar.hidden = !channels;
+  if (!channels) return bar.replaceChildren();
+  const pick = (button, draw) => {
+    for (const b of bar.querySelectorAll("button")) b.classList.toggle("quiet", b !== button);
+    draw();
+  };
+  const all = el("button", { type: "button", class: "small", "data-channel": "all" }, "all channels");
+  all.addEventListener("click", () => pick(all, showWholePicture));
+  const each = Array.from({ length: channels.layout.channels }, (_, c) => {
+    const button = el("button", { type: "button", class: "small quiet", "data-channel": c }, `channel ${c}`);
+    button.addEventListener("click", () => pick(button, () => drawChannel(channels.reward, channels.layout, c)));
+    return button;
+  });
+  bar.replaceChildren(all, ...each);
+}
+
+function showWholePicture() {
+  state.lightboxCall += 1;
+  $("lightbox-canvas").hidden = true;
+  $("lightbox-img").hidden = false;
+}
+
+// Channel ``channel`` of the reward (state = (channel·height + y)·width + x, y up), coloured on the range of
+// all channels so that channels compare, at the largest whole number of pixels per cell the window allows.
+async function drawChannel(reward, layout, channel) {
+  const call = ++state.lightboxCall;
+  const { values } = await getJson(`/v1/rewards/${encodeURIComponent(reward.reward_id)}?format=json`);
+  if (call !== state.lightboxCall) return;
+  const { width, height } = layout;
+  const lo = Math.min(...values);
+  const hi = Math.max(...values);
+  const cell = Math.max(4, Math.floor(Math.min((innerWidth - 40) / width, (innerHeight - 90) / height)));
+  const canvas = $("lightbox-canvas");
+  canvas.width = width * cell;
+  canvas.height = height * cell;
+  canvas.dataset.channel = channel;
+  const context = canvas.getContext("2d");
+  for (let y = 0; y < height; y++) {
+    for (let x = 0; x < width; x++) {
+      const v = values[(channel * height + y) * width + x];
+      context.fillStyle = viridis(hi > lo ? (v - lo) / (hi - lo) : 0.5);
+      context.fillRect(x * cell, (height - 1 - y) * cell, cell, cell);
+    }
+  }
+  $("lightbox-img").hidden = true;
+  canvas.hidden = false;
+}
