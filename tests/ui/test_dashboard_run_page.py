@@ -26,7 +26,8 @@ from scripts.screenshots import (
 )
 from service.domain.job_config import JobConfig
 from tests.served import Served, metairl_serve
-from tests.ui.helpers import ARTIFACTS, ok, open_dashboard
+from tests.ui.helpers import ARTIFACTS, QUICK, ok, open_dashboard
+from tests.ui.test_dashboard_motion_and_webhooks import UNSTIMULATED, recorded
 
 if TYPE_CHECKING:
     from playwright.sync_api import Browser, Page, Route
@@ -123,6 +124,31 @@ def test_every_download_link_answers_200_and_saves_a_file(demo: Demo, browser: B
     with page.expect_download() as download:
         page.locator("#downloads a[data-download*='format=csv&quantity=value']").first.click()
     assert download.value.suggested_filename.endswith(".csv")
+    assert errors == []
+
+
+def test_a_recorded_sessions_run_page_links_its_demonstrations_and_each_velocity_channel(
+    demo: Demo, browser: Browser
+) -> None:
+    session = recorded(demo.http, "recorded session", UNSTIMULATED)
+    job_id = submit(demo.http, session, QUICK)
+    wait_for(demo.http, [job_id])
+    page, errors = dashboard(browser, demo)
+    page.locator(f"tr[data-job='{job_id}'] [data-action='run']").click()
+    page.wait_for_selector("#downloads tr[data-recording] a[data-download]")
+    links = page.locator("#downloads tr[data-recording] a").evaluate_all(
+        "as => as.map(a => a.dataset.download)"
+    )
+    assert len(links) == 2 and links[0].endswith("/demonstrations") and links[1].endswith("?format=csv")
+    for link in links:
+        response = demo.http.get(link)
+        assert response.status_code == 200, link
+    assert response.text.startswith("trajectory,step,state,action")
+    page.wait_for_function(
+        "() => [...document.querySelectorAll('#heatmaps img')].every(i => i.naturalWidth > 0)"
+    )
+    page.locator("#heatmaps img").nth(1).click()
+    assert page.locator("#lightbox-channels button").count() == 1 + 8  # all, and the eight directions
     assert errors == []
 
 

@@ -1489,7 +1489,7 @@ async function renderDownloads(job) {
     const d = state.demonstrators.get(job.demonstrator_id);
     const tasks = d ? d.tasks.filter((t) => job.task_ids.includes(t.id)) : [];
     const mdpIds = [...new Set(tasks.map((t) => t.mdp_id).filter(Boolean))];
-    const recordings = d ? d.recordings : [];
+    const recordings = d ? d.recordings.filter((r) => r.protocol !== "standing") : []; // standing trials are not cut into demonstrations
     box.replaceChildren(
       el(
         "table",
