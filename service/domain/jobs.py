@@ -185,6 +185,27 @@ class HistoryPoint(BaseModel):
 class JobHistory(BaseModel):
     """A job's loss curve: the progress samples of its latest attempt, by step (two a second while it runs)."""
 
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "job_id": "job_V3n8sK2qLx0bT7mY4cW9rA",
+                    "attempt": 1,
+                    "max_steps": 500,
+                    "best_step": 280,
+                    "points": [
+                        {
+                            k: EXAMPLE_PROGRESS[k]
+                            for k in ("step", "loss", "irl_loss", "sharing_loss", "heldout_nll")
+                        }
+                        | {"step": 4, "elapsed_s": 0.5},
+                        {k: v for k, v in EXAMPLE_PROGRESS.items() if k != "max_steps"},
+                    ],
+                }
+            ]
+        }
+    )
+
     job_id: str
     attempt: int = Field(description="The attempt the samples are of (a re-run starts a new curve).")
     max_steps: int | None = Field(description="The step budget; null before the first sample.")
