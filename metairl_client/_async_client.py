@@ -311,6 +311,11 @@ class AsyncClient:
         """`GET /v1/jobs/{id}/events`: one page of the job's progress log and status changes."""
         return await self._call(ops.list_events(job_id, limit, cursor))
 
+    async def job_history(self, job_id: str) -> dict[str, Any]:
+        """`GET /v1/jobs/{id}/history`: the loss curve of the latest attempt (loss, IRL and sharing losses,
+        held-out NLL per progress sample, by step)."""
+        return await self._call(ops.job_history(job_id))
+
     def iter_events(self, job_id: str, *, page_size: int = 100) -> AsyncIterator[dict[str, Any]]:
         """Every stored event of the job, page after page (`wait` follows them live)."""
         return self._pages(lambda cursor: ops.list_events(job_id, page_size, cursor))

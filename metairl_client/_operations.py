@@ -343,6 +343,11 @@ def list_events(job_id: str, limit: int | None, cursor: str | None) -> Call[Page
     return Call("GET", events_path(job_id), _page, params=_paging(limit, cursor))
 
 
+def job_history(job_id: str) -> Call[dict[str, Any]]:
+    """`GET /v1/jobs/{id}/history`."""
+    return Call("GET", f"/v1/jobs/{_segment(job_id)}/history", _object)
+
+
 def events_path(job_id: str) -> str:
     """The path of a job's events."""
     return f"/v1/jobs/{_segment(job_id)}/events"

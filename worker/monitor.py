@@ -1,7 +1,7 @@
 """The heartbeat of a running attempt: a thread that writes progress, reads the cancel flag, fences writes.
 
 Started right after the claim (before torch is even imported), it writes heartbeat and the latest
-progress to the job row every ``job_heartbeat_s`` from its own thread, so neither a slow import nor a
+progress to the job row every ``job_heartbeat_s`` (or ``job_event_interval_s`` when shorter) from its own thread, so neither a slow import nor a
 long optimisation step starves it; it appends throttled progress events, and tells the fit to stop
 when a cancel was requested or another attempt took the job. numpy-free and torch-free.
 """
@@ -36,7 +36,7 @@ class Monitor(threading.Thread):
     def __init__(self, make_session: sessionmaker[Session], job_id: str, attempt: int, settings: Settings):
         super().__init__(name=f"monitor-{job_id}", daemon=True)
         self._make_session, self._job_id, self._attempt = make_session, job_id, attempt
-        self._period = min(settings.job_heartbeat_s, 1.0)
+        self._period = min(settings.job_heartbeat_s, settings.job_event_interval_s, 1.0)
         self._event_interval = settings.job_event_interval_s
         self._latest: Progress | None = None
         self._logged_step: int | None = None

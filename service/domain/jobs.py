@@ -167,3 +167,60 @@ class JobEventOut(BaseModel):
     def of(cls, event: JobEvent) -> JobEventOut:
         """The API view of an event row."""
         return cls.model_validate(event)
+
+
+class HistoryPoint(BaseModel):
+    """One progress sample of a job's loss curve."""
+
+    model_config = ConfigDict(from_attributes=True)
+
+    step: int
+    loss: float
+    irl_loss: float
+    sharing_loss: float
+    heldout_nll: float | None = None
+    elapsed_s: float
+
+
+class JobHistory(BaseModel):
+    """A job's loss curve: the progress samples of its latest attempt, by step (two a second while it runs)."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "job_id": "job_V3n8sK2qLx0bT7mY4cW9rA",
+                    "attempt": 1,
+                    "max_steps": 500,
+                    "best_step": 280,
+                    "points": [
+                        {
+                            k: EXAMPLE_PROGRESS[k]
+                            for k in ("step", "loss", "irl_loss", "sharing_loss", "heldout_nll")
+                        }
+                        | {"step": 4, "elapsed_s": 0.5},
+                        {k: v for k, v in EXAMPLE_PROGRESS.items() if k != "max_steps"},
+                    ],
+                }
+            ]
+        }
+    )
+
+    job_id: str
+    attempt: int = Field(description="The attempt the samples are of (a re-run starts a new curve).")
+    max_steps: int | None = Field(description="The step budget; null before the first sample.")
+    best_step: int | None = Field(description="The step whose parameters were kept (when succeeded).")
+    points: list[HistoryPoint] = Field(
+        description="Oldest first; a long log is thinned evenly to at most 2000 points, first and last kept."
+    )
+
+    @classmethod
+    def of(cls, job: Job, samples: list[JobEvent]) -> JobHistory:
+        """The history of ``job`` from its progress events."""
+        return cls(
+            job_id=job.id,
+            attempt=job.attempts,
+            max_steps=samples[-1].max_steps if samples else job.max_steps,
+            best_step=job.best_step,
+            points=[HistoryPoint.model_validate(e) for e in samples],
+        )

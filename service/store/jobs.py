@@ -49,6 +49,24 @@ def list_events(session: Session, job: Job, *, page: PageParams) -> RowPage[JobE
     return paginate(session, query, page, key=(JobEvent.id,), newest_first=False)
 
 
+HISTORY_MAX_POINTS = 2000
+"""The most points a job's loss history returns: a longer log is thinned evenly (first and last kept)."""
+
+
+def progress_history(session: Session, job: Job) -> list[JobEvent]:
+    """The progress samples of the job's latest attempt, by step, thinned to `HISTORY_MAX_POINTS`."""
+    query = (
+        select(JobEvent)
+        .where(JobEvent.job_id == job.id, JobEvent.kind == "progress", JobEvent.attempt == job.attempts)
+        .order_by(JobEvent.step, JobEvent.id)
+    )
+    samples = list(session.execute(query).scalars())
+    if len(samples) <= HISTORY_MAX_POINTS:
+        return samples
+    stride = (len(samples) - 1) / (HISTORY_MAX_POINTS - 1)
+    return [samples[round(i * stride)] for i in range(HISTORY_MAX_POINTS)]
+
+
 def events_after(session: Session, job_id: str, *, after_id: int, limit: int) -> list[JobEvent]:
     """Up to ``limit`` events of the job with an id above ``after_id``, oldest first (the event stream)."""
     query = (

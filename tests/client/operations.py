@@ -44,6 +44,7 @@ OPERATION_METHODS: dict[str, tuple[str, ...]] = {
     "read_job_v1_jobs__job_id__get": ("get_job",),
     "delete_job_v1_jobs__job_id__delete": ("delete_job",),
     "list_events_v1_jobs__job_id__events_get": ("list_events", "iter_events", "wait"),
+    "read_history_v1_jobs__job_id__history_get": ("job_history",),
     "cancel_job_v1_jobs__job_id__cancel_post": ("cancel_job",),
     "job_rewards_v1_jobs__job_id__rewards_get": ("job_rewards", "rewards"),
     "download_reward_v1_rewards__reward_id__get": ("reward_values", "download_reward", "reward_png"),

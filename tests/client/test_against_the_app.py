@@ -192,6 +192,7 @@ def journey(app: FastAPI, lab: Any) -> None:
     assert (
         len(lab.list_events(cancelled.id).data) == len(list(lab.iter_events(cancelled.id, page_size=1))) >= 1
     )
+    assert lab.job_history(cancelled.id)["points"] == []  # it never ran
     lab.delete_job(cancelled.id)
     with pytest.raises(NotFoundError):
         lab.get_job(cancelled.id)

@@ -1,4 +1,4 @@
-"""`/v1/jobs` (docs/api.md, "Jobs"): submit, read, list, follow the event log, cancel.
+"""`/v1/jobs` (docs/api.md, "Jobs"): submit, read, list, follow the event log, read the loss curve, cancel.
 
 The job row is committed before its message is sent; if the broker refuses the message the job is
 marked failed with the reason (never lost silently).
@@ -18,7 +18,7 @@ from service.api.openapi import PROBLEM_RESPONSES
 from service.api.pagination import Page, PageDep
 from service.api.responses import DELETED, NO_SUCH_JOB
 from service.api.sse import MEDIA_TYPE, job_events, parse_last_event_id, wants_stream
-from service.domain.jobs import JobEventOut, JobIn, JobOut
+from service.domain.jobs import JobEventOut, JobHistory, JobIn, JobOut
 from service.jobs.queue import EnqueueFailed
 from service.jobs.submit import create_job
 from service.jobs.transitions import cancel
@@ -142,6 +142,13 @@ def list_events(
     return StreamingResponse(
         stream, media_type=MEDIA_TYPE, headers=headers, background=BackgroundTask(slot.release)
     )
+
+
+@router.get("/jobs/{job_id}/history", summary="A job's loss curve", responses=NO_SUCH_JOB)
+def read_history(job: JobDep, session: SessionDep) -> JobHistory:
+    """Loss, IRL loss, sharing loss and held-out NLL per progress sample of the latest attempt, by step; the
+    event stream's `progress` events extend it live."""
+    return JobHistory.of(job, jobs.progress_history(session, job))
 
 
 @router.post(

@@ -35,6 +35,14 @@ const state = {
   webhooksCall: 0, // the same for loadWebhooks: an earlier listing never redraws over a later one
   mode: "", // how progress arrives: "stream" or "polling"
   openStreams: 0,
+  cursors: [null], // the job list's page cursors: [first page, second page, …] up to the page shown
+  nextCursor: null, // the cursor of the page after the one shown (null: it is the last)
+  run: null, // job id whose run page is shown
+  history: null, // {jobId, attempt, maxSteps, bestStep, points} of the run page's loss curve
+  runCall: 0, // bumped by each showRun, so an earlier call's late answers never redraw the run page
+  configSchema: null, // JobConfig's properties from /openapi.json (defaults, ranges, descriptions)
+  mdps: [],
+  lightboxCall: 0, // bumped by each channel drawn or lightbox closed, so a late reward never draws over it
 };
 
 class ApiError extends Error {
@@ -167,6 +175,12 @@ function stopAll() {
   state.demonstrators.clear();
   state.selected = null;
   state.motion = null;
+  state.run = null;
+  state.history = null;
+  state.runCall += 1;
+  state.cursors = [null];
+  state.nextCursor = null;
+  $("run").hidden = true;
   $("jobs").replaceChildren();
   $("results").hidden = true;
   $("motion").hidden = true;
@@ -179,8 +193,9 @@ function stopAll() {
 async function loadEverything() {
   const generation = state.generation;
   try {
-    await loadDemonstrators(generation);
-    await Promise.all([loadJobs(generation), loadWebhooks(generation)]);
+    await Promise.all([loadDemonstrators(generation), loadConfigSchema()]);
+    renderSubmitForm(); // its settings need the schema
+    await Promise.all([loadJobs(generation), loadWebhooks(generation), loadMdps(generation)]);
   } catch (error) {
     if (generation === state.generation) reportError(error);
     return;
@@ -208,6 +223,8 @@ async function loadDemonstrators(generation) {
   if (generation !== state.generation) return;
   state.demonstrators = new Map(details.map((d) => [d.id, d]));
   renderDemonstrators();
+  renderDemonstratorFilter();
+  renderSubmitForm();
 }
 
 function renderDemonstrators() {
@@ -221,7 +238,7 @@ function renderDemonstrators() {
       el(
         "div",
         { class: `dem${state.motion === d.id ? " selected" : ""}`, "data-demonstrator": d.id },
-        el("div", { class: "dem-name" }, d.name),
+        el("div", { class: "dem-name" }, d.name, " ", deleteButton("demonstrator", d.id, `demonstrator ${d.name} with its tasks, recordings and jobs`)),
         el("div", { class: "id" }, d.id),
         d.tasks.length
           ? el(
@@ -234,6 +251,8 @@ function renderDemonstrators() {
                   t.name,
                   " ",
                   el("span", { class: "meta" }, `· ${t.n_trajectories} traj., ${t.n_steps} steps${t.has_true_reward ? " · true reward" : ""}`),
+                  " ",
+                  deleteButton("task", t.id, `task ${t.name} with its demonstrations and the jobs that fitted it`),
                 ),
               ),
             )
@@ -264,8 +283,11 @@ function demonstratorName(id) {
 // ---- jobs ----------------------------------------------------------------------------------------
 
 async function loadJobs(generation) {
-  const jobs = await getAll("/v1/jobs");
+  const { jobs, nextCursor } = await jobsPage();
   if (generation !== state.generation) return;
+  state.nextCursor = nextCursor;
+  renderPager();
+  dropRowsNotIn(new Set(jobs.map((j) => j.id)));
   const unknown = jobs.some((j) => !state.demonstrators.has(j.demonstrator_id));
   if (unknown) await loadDemonstrators(generation).catch(() => undefined);
   for (const job of jobs) {
@@ -290,6 +312,7 @@ function updateJob(job) {
   const previous = state.jobs.get(job.id);
   state.jobs.set(job.id, job);
   renderJobRow(job);
+  if (state.run === job.id) renderRun(job, previous);
   if (previous && previous.status !== "succeeded" && job.status === "succeeded" && state.selected === null) {
     showResults(job.id);
   }
@@ -299,7 +322,7 @@ function renderJobRow(job) {
   let row = state.rows.get(job.id);
   if (!row) {
     const tr = el("tr", { "data-job": job.id });
-    const errorTr = el("tr", { class: "error-row", hidden: true }, el("td", { class: "error", colspan: 6 }));
+    const errorTr = el("tr", { class: "error-row", hidden: true }, el("td", { class: "error", colspan: 8 }));
     row = { tr, errorTr };
     state.rows.set(job.id, row);
     $("jobs").prepend(tr, errorTr);
@@ -312,9 +335,9 @@ function renderJobRow(job) {
   const barText = p ? `step ${p.step} / ${steps}${p.elapsed_s != null ? ` · ${fmt(p.elapsed_s, 1)} s` : ""}` : job.status === "queued" ? "waiting for a worker" : "";
   const created = new Date(job.created_at);
   row.tr.dataset.status = job.status;
-  row.tr.className = state.selected === job.id ? "selected" : "";
+  row.tr.className = state.selected === job.id || state.run === job.id ? "selected" : "";
   row.tr.replaceChildren(
-    el("td", {}, el("div", { class: "id", title: job.id }, job.id), el("div", { class: "bar-text" }, created.toLocaleString())),
+    el("td", {}, el("button", { class: "link id", title: "Open the run page", "data-action": "run", onclick: () => showRun(job.id, { scroll: true }) }, job.id), el("div", { class: "bar-text" }, created.toLocaleString())),
     el("td", {}, demonstratorName(job.demonstrator_id), el("div", { class: "bar-text" }, `${job.task_ids.length} tasks`)),
     el("td", {}, el("span", { class: `badge ${job.status}`, "data-role": "status" }, job.cancel_requested && !TERMINAL.has(job.status) ? `${job.status} (cancelling)` : job.status)),
     el(
@@ -324,6 +347,8 @@ function renderJobRow(job) {
       el("div", { class: "bar-text" }, barText),
     ),
     el("td", { class: "num" }, p ? fmt(p.loss) : "–"),
+    el("td", { class: "config-cell", "data-role": "config" }, configSummary(job.config)),
+    el("td", { class: "num", "data-role": "best-step" }, job.best_step ?? "–", el("div", { class: "bar-text" }, attemptsText(job))),
     el(
       "td",
       { class: "actions" },
@@ -333,6 +358,7 @@ function renderJobRow(job) {
       job.status === "succeeded"
         ? el("button", { class: "small", "data-action": "results", onclick: () => showResults(job.id) }, "Results")
         : null,
+      TERMINAL.has(job.status) ? deleteButton("job", job.id, `job ${job.id} with its events and learned rewards`) : null,
     ),
   );
   const errorCell = row.errorTr.firstChild;
@@ -458,6 +484,7 @@ async function onEvent(id, event) {
   if (event.name === "progress" || data.kind === "progress") {
     const progress = data.progress || data;
     if (typeof progress.step === "number") {
+      if (state.run === id) extendHistory(id, progress, data.attempt);
       const status = job.status === "queued" ? "running" : job.status;
       updateJob({ ...job, status, progress: { ...(job.progress || {}), ...progress } });
     }
@@ -520,6 +547,8 @@ async function showResults(id, { scroll = false } = {}) {
     if (!current()) return;
     renderHeatmaps(rewards, current);
     renderMatrix(matrix);
+    // Side by side while the matrix is small; stacked (each full width, scrolling inside) once it is not.
+    document.querySelector(".results-grid").classList.toggle("stacked", matrix.labels.length > 6);
     const keyStates = await Promise.all(
       rewards.tasks.map((t) => getJson(`/v1/rewards/${encodeURIComponent(t.reward_id)}/key-states?top=5`)),
     );
@@ -531,6 +560,7 @@ async function showResults(id, { scroll = false } = {}) {
 }
 
 function renderHeatmaps(rewards, current) {
+  const layout = rewards.tasks.length ? layoutOfTask(rewards.tasks[0].task_id) : null;
   const cards = [rewards.baseline, ...rewards.tasks].map((reward) => {
     const title = reward.kind === "baseline" ? "baseline (shared)" : reward.task_name || reward.task_id;
     const s = reward.summary;
@@ -561,7 +591,12 @@ function renderHeatmaps(rewards, current) {
       reward.note ? el("details", { class: "note", "data-role": "note" }, el("summary", {}, "How to read this baseline"), reward.note) : null,
       spread,
     );
-    if (reward.links.png) loadImage(picture, "results", current, reward.links.png);
+    if (reward.links.png) {
+      picture.classList.add("zoomable");
+      picture.title = "Open full size";
+      picture.addEventListener("click", () => openLightbox(picture.src, title, layout && layout.channels > 1 ? { reward, layout } : null));
+      loadImage(picture, "results", current, reward.links.png);
+    }
     if (spread) loadImage(spread.querySelector("img"), "results", current, reward.links.uncertainty_png);
     return card;
   });
@@ -569,7 +604,15 @@ function renderHeatmaps(rewards, current) {
 }
 
 // Fetch a picture with the key and show it from a blob: URL, kept with the view's others until released.
+// Until the picture has loaded it is hidden behind a placeholder, so a slow render never shows a broken image.
 async function loadImage(img, view, current, path, options) {
+  const placeholder = el("div", { class: "img-placeholder", "data-role": "placeholder" }, "Rendering…");
+  img.hidden = true;
+  img.before(placeholder);
+  img.addEventListener("load", () => {
+    placeholder.remove();
+    img.hidden = false;
+  }, { once: true });
   try {
     const blob = await (await api(path, options)).blob();
     if (!current()) return;
@@ -577,6 +620,7 @@ async function loadImage(img, view, current, path, options) {
     state.blobUrls[view].push(url);
     img.src = url;
   } catch (error) {
+    placeholder.remove();
     if (current()) img.replaceWith(el("div", { class: "nopic" }, `${img.alt}: unavailable (${error.message})`));
   }
 }
@@ -1143,4 +1187,624 @@ async function showSwayGroups(id, trials) {
   } catch (error) {
     box.replaceChildren(unavailable(error));
   }
+}
+
+// ---- job list: filters and paging ----------------------------------------------------------------
+
+const JOBS_PER_PAGE = 15;
+
+// One page of the lab's jobs under the filters (status, demonstrator), at the cursor of the page shown.
+async function jobsPage() {
+  const query = new URLSearchParams({ limit: String(JOBS_PER_PAGE) });
+  const status = $("filter-status").value;
+  const demonstrator = $("filter-demonstrator").value;
+  if (status) query.set("status", status);
+  if (demonstrator) query.set("demonstrator_id", demonstrator);
+  const cursor = state.cursors[state.cursors.length - 1];
+  if (cursor) query.set("cursor", cursor);
+  const body = await getJson(`/v1/jobs?${query}`);
+  return { jobs: body.data, nextCursor: body.has_more ? body.next_cursor : null };
+}
+
+// Remove the rows (and stop following the jobs) that the page shown no longer lists.
+function dropRowsNotIn(ids) {
+  for (const [id, row] of state.rows) {
+    if (ids.has(id)) continue;
+    row.tr.remove();
+    row.errorTr.remove();
+    state.rows.delete(id);
+    state.jobs.delete(id);
+    state.watching.get(id)?.abort();
+    state.watching.delete(id);
+  }
+}
+
+function renderPager() {
+  $("jobs-page").textContent = `page ${state.cursors.length}`;
+  $("jobs-prev").disabled = state.cursors.length === 1;
+  $("jobs-next").disabled = !state.nextCursor;
+}
+
+// Show the first page again (after a filter changed) or the next or previous one.
+function turnPage(how) {
+  if (how === "next" && state.nextCursor) state.cursors.push(state.nextCursor);
+  else if (how === "prev" && state.cursors.length > 1) state.cursors.pop();
+  else if (how === "first") state.cursors = [null];
+  loadJobs(state.generation).catch(reportError);
+}
+
+function renderDemonstratorFilter() {
+  const select = $("filter-demonstrator");
+  const previous = select.value;
+  select.replaceChildren(
+    el("option", { value: "" }, "any"),
+    ...[...state.demonstrators.values()].map((d) => el("option", { value: d.id }, d.name)),
+  );
+  if (state.demonstrators.has(previous)) select.value = previous;
+}
+
+// A setting's default in the schema (the schema leaves out a default of null).
+function defaultOf(schema) {
+  return schema.default === undefined ? null : schema.default;
+}
+
+// The settings of a job's config that differ from JobConfig's defaults, as [name, value] pairs.
+function configDifferences(config) {
+  const props = state.configSchema || {};
+  return Object.entries(config || {}).filter(
+    ([name, value]) => !(name in props) || JSON.stringify(defaultOf(props[name])) !== JSON.stringify(value),
+  );
+}
+
+function configSummary(config) {
+  const differences = configDifferences(config);
+  if (!state.configSchema) return el("span", { class: "meta" }, "…");
+  if (differences.length === 0) return el("span", { class: "meta" }, "defaults");
+  return differences.map(([name, value]) => el("span", { class: "chip", title: `${name} = ${JSON.stringify(value)}` }, `${name}=${JSON.stringify(value)}`));
+}
+
+function attemptsText(job) {
+  const took = duration(job.started_at, job.finished_at);
+  return `attempt ${job.attempts}/${job.max_attempts}${took ? ` · ${took}` : ""}`;
+}
+
+// "12.3 s" or "4 min 5 s" between two ISO times (until now while the second is missing); "" before the start.
+function duration(from, to) {
+  if (!from) return "";
+  const seconds = ((to ? new Date(to) : new Date()) - new Date(from)) / 1000;
+  return seconds < 60 ? `${seconds.toFixed(1)} s` : `${Math.floor(seconds / 60)} min ${Math.round(seconds % 60)} s`;
+}
+
+// JobConfig's properties, read once from the OpenAPI document (it needs no key).
+async function loadConfigSchema() {
+  if (state.configSchema) return;
+  const response = await fetch(`${ROOT}/openapi.json`);
+  const spec = await response.json();
+  state.configSchema = spec.components.schemas.JobConfig.properties;
+}
+
+// ---- run page: facts, settings, loss curve, downloads --------------------------------------------
+
+async function showRun(id, { scroll = false } = {}) {
+  const call = ++state.runCall;
+  state.run = id;
+  state.history = null;
+  for (const [jobId, row] of state.rows) row.tr.className = jobId === id || jobId === state.selected ? "selected" : "";
+  const section = $("run");
+  section.hidden = false;
+  section.dataset.job = id;
+  $("loss-curve").replaceChildren(loading());
+  $("downloads").replaceChildren();
+  if (scroll) section.scrollIntoView({ block: "start" });
+  try {
+    const [job, history] = await Promise.all([
+      getJson(`/v1/jobs/${encodeURIComponent(id)}`),
+      getJson(`/v1/jobs/${encodeURIComponent(id)}/history`),
+    ]);
+    if (call !== state.runCall) return;
+    state.history = { jobId: id, attempt: history.attempt, maxSteps: history.max_steps, bestStep: history.best_step, points: history.points };
+    state.jobs.set(id, job);
+    renderRun(job, null);
+    if (job.status === "succeeded" && state.selected !== id) showResults(id);
+  } catch (error) {
+    if (call === state.runCall) reportError(error);
+  }
+}
+
+// Redraw the run page of ``job``; the downloads are read again only when the job has just succeeded.
+function renderRun(job, previous) {
+  $("run-title").textContent = `Run ${job.id}`;
+  $("run-status").replaceChildren(el("span", { class: `badge ${job.status}`, "data-role": "status" }, job.status));
+  const fact = (name, value) => [el("dt", {}, name), el("dd", {}, value)];
+  const p = job.progress;
+  $("run-facts").replaceChildren(
+    ...fact("demonstrator", demonstratorName(job.demonstrator_id)),
+    ...fact("tasks", job.task_ids.map((t) => taskName(job.demonstrator_id, t)).join(", ")),
+    ...fact("steps", p ? `${p.step} of ${p.max_steps}` : "–"),
+    ...fact("best step", job.best_step ?? "–"),
+    ...fact("attempts", `${job.attempts} of ${job.max_attempts}`),
+    ...fact("created", when(job.created_at)),
+    ...fact("started", when(job.started_at)),
+    ...fact("finished", when(job.finished_at)),
+    ...fact("run time", duration(job.started_at, job.finished_at) || "–"),
+    ...(job.error ? fact("error", job.error) : []),
+  );
+  renderRunConfig(job.config);
+  if (state.history && state.history.jobId === job.id) {
+    state.history.bestStep = job.best_step;
+    drawLossCurve($("loss-curve"), state.history);
+  }
+  const succeeded = job.status === "succeeded";
+  if (succeeded && (!previous || previous.status !== "succeeded" || !$("downloads").firstChild)) renderDownloads(job);
+  if (!succeeded) $("downloads").replaceChildren(el("p", { class: "empty" }, downloadsLater(job)));
+}
+
+function downloadsLater(job) {
+  const inputs = "the MDP arrays and demonstrations are listed below once it has succeeded";
+  return TERMINAL.has(job.status) ? `The job ${job.status}: it has no learned rewards.` : `Learned rewards, ${inputs}.`;
+}
+
+function taskName(demonstratorId, taskId) {
+  const d = state.demonstrators.get(demonstratorId);
+  const t = d && d.tasks.find((x) => x.id === taskId);
+  return t ? t.name : taskId;
+}
+
+function renderRunConfig(config) {
+  const props = state.configSchema || {};
+  const differences = configDifferences(config);
+  $("run-config").replaceChildren(
+    differences.length
+      ? el(
+          "table",
+          { class: "readout config-table" },
+          el("thead", {}, el("tr", {}, el("th", {}, "setting"), el("th", {}, "value"), el("th", {}, "default"))),
+          el(
+            "tbody",
+            {},
+            differences.map(([name, value]) =>
+              el("tr", { "data-setting": name }, el("th", { class: "row", title: props[name]?.description || "" }, name), el("td", {}, JSON.stringify(value)), el("td", { class: "meta" }, name in props ? JSON.stringify(defaultOf(props[name])) : "–")),
+            ),
+          ),
+        )
+      : el("p", { class: "empty" }, "Every setting at its default."),
+    el("details", { class: "full-config" }, el("summary", {}, "All settings"), el("pre", {}, JSON.stringify(config, null, 1))),
+  );
+}
+
+// A progress event of the run page's job: a new point of its curve (a new attempt starts a new curve).
+function extendHistory(id, progress, attempt) {
+  const h = state.history;
+  if (!h || h.jobId !== id) return;
+  if (typeof attempt === "number" && attempt !== h.attempt) {
+    h.attempt = attempt;
+    h.points = [];
+  }
+  const last = h.points[h.points.length - 1];
+  if (last && progress.step <= last.step) return;
+  h.points.push({ step: progress.step, loss: progress.loss, irl_loss: progress.irl_loss, sharing_loss: progress.sharing_loss, heldout_nll: progress.heldout_nll ?? null, elapsed_s: progress.elapsed_s });
+  h.maxSteps = progress.max_steps || h.maxSteps;
+  drawLossCurve($("loss-curve"), h);
+}
+
+// ---- loss curve: a small SVG line plot -----------------------------------------------------------
+
+const SERIES = [
+  ["loss", "loss", "#2563eb"],
+  ["irl_loss", "IRL loss", "#15803d"],
+  ["sharing_loss", "sharing loss", "#b45309"],
+  ["heldout_nll", "held-out NLL", "#9333ea"],
+];
+const SVG_NS = "http://www.w3.org/2000/svg";
+
+function svg(tag, attrs = {}, text) {
+  const node = document.createElementNS(SVG_NS, tag);
+  for (const [name, value] of Object.entries(attrs)) node.setAttribute(name, String(value));
+  if (text !== undefined) node.textContent = text;
+  return node;
+}
+
+// About five round numbers spanning [lo, hi].
+function ticks(lo, hi, count = 5) {
+  const span = hi - lo || 1;
+  const raw = span / count;
+  const power = 10 ** Math.floor(Math.log10(raw));
+  const step = [1, 2, 5, 10].map((m) => m * power).find((s) => s >= raw);
+  const out = [];
+  for (let v = Math.ceil(lo / step) * step; v <= hi + step * 1e-9; v += step) out.push(Number(v.toPrecision(12)));
+  return out;
+}
+
+// Each loss over steps, the kept step marked; the series without values (no hold-out) are left out.
+function drawLossCurve(box, history) {
+  const points = history.points;
+  if (points.length === 0) {
+    box.replaceChildren(el("p", { class: "empty" }, "No progress yet: the curve starts with the first step."));
+    return;
+  }
+  const shown = SERIES.filter(([key]) => points.some((p) => Number.isFinite(p[key])));
+  const values = shown.flatMap(([key]) => points.map((p) => p[key]).filter(Number.isFinite));
+  let lo = Math.min(...values);
+  let hi = Math.max(...values);
+  const pad = (hi - lo || Math.abs(hi) || 1) * 0.06;
+  lo -= pad;
+  hi += pad;
+  const lastStep = points[points.length - 1].step;
+  const xMax = Math.max(history.maxSteps || 0, lastStep, 1);
+  const W = Math.max(360, box.clientWidth || 640);
+  const H = 240;
+  const M = { left: 52, right: 12, top: 10, bottom: 30 };
+  const x = (step) => M.left + (step / xMax) * (W - M.left - M.right);
+  const y = (v) => M.top + (1 - (v - lo) / (hi - lo)) * (H - M.top - M.bottom);
+  const plot = svg("svg", { viewBox: `0 0 ${W} ${H}`, width: W, height: H, role: "img", "aria-label": "loss curve", "data-points": points.length });
+  for (const t of ticks(lo, hi)) {
+    plot.append(svg("line", { x1: M.left, x2: W - M.right, y1: y(t), y2: y(t), class: "grid" }));
+    plot.append(svg("text", { x: M.left - 6, y: y(t) + 4, "text-anchor": "end", class: "tick" }, fmt(t, 2)));
+  }
+  for (const t of ticks(0, xMax)) {
+    plot.append(svg("text", { x: x(t), y: H - M.bottom + 16, "text-anchor": "middle", class: "tick" }, t));
+  }
+  plot.append(svg("text", { x: W - M.right, y: H - 2, "text-anchor": "end", class: "tick" }, "step"));
+  plot.append(svg("line", { x1: M.left, x2: M.left, y1: M.top, y2: H - M.bottom, class: "axis" }));
+  plot.append(svg("line", { x1: M.left, x2: W - M.right, y1: H - M.bottom, y2: H - M.bottom, class: "axis" }));
+  if (history.bestStep !== null && history.bestStep !== undefined) {
+    const bx = x(history.bestStep);
+    plot.append(svg("line", { x1: bx, x2: bx, y1: M.top, y2: H - M.bottom, class: "best", "data-role": "best-step" }));
+    const right = bx > W / 2; // the label on the side with room
+    plot.append(svg("text", { x: right ? bx - 4 : bx + 4, y: M.top + 10, "text-anchor": right ? "end" : "start", class: "tick" }, `kept step ${history.bestStep}`));
+  }
+  for (const [key, , colour] of shown) {
+    const d = points
+      .filter((p) => Number.isFinite(p[key]))
+      .map((p, i) => `${i ? "L" : "M"}${x(p.step).toFixed(1)},${y(p[key]).toFixed(1)}`)
+      .join("");
+    plot.append(svg("path", { d, fill: "none", stroke: colour, "stroke-width": 1.6, "data-series": key }));
+  }
+  const last = points[points.length - 1];
+  const legend = el(
+    "div",
+    { class: "legend" },
+    shown.map(([key, label, colour]) => el("span", { "data-series": key }, el("i", { style: { background: colour } }), `${label} ${fmt(last[key])}`)),
+  );
+  box.replaceChildren(plot, legend);
+}
+
+// ---- downloads: every format of every reward, the MDP arrays, the recordings' demonstrations ------
+
+// A download fetched with the key and saved under the server's file name (a plain link cannot send the header).
+function downloadLink(path, label, title) {
+  return el("a", { href: ROOT + path, class: "download", "data-download": path, title: title || label, onclick: (event) => saveDownload(event, path) }, label);
+}
+
+async function saveDownload(event, path) {
+  event.preventDefault();
+  try {
+    const response = await api(path);
+    const disposition = response.headers.get("content-disposition") || "";
+    const name = (disposition.match(/filename="?([^";]+)"?/) || [])[1] || path.split("/").pop().split("?")[0];
+    const url = URL.createObjectURL(await response.blob());
+    const a = el("a", { href: url, download: name });
+    document.body.append(a);
+    a.click();
+    a.remove();
+    setTimeout(() => URL.revokeObjectURL(url), 10000);
+  } catch (error) {
+    reportError(error);
+  }
+}
+
+const QUANTITY_FORMATS = { reward: ["json", "npy", "csv", "png"], value: ["json", "npy", "csv", "png"], policy: ["json", "npy", "csv"] };
+
+// The links of one reward: for each quantity it has (the baseline only a reward), each format.
+function rewardDownloads(reward) {
+  const quantities = reward.kind === "baseline" ? ["reward"] : ["reward", "value", "policy"];
+  return quantities.map((quantity) =>
+    el(
+      "span",
+      { class: "quantity" },
+      `${quantity}: `,
+      QUANTITY_FORMATS[quantity]
+        .filter((format) => format !== "png" || reward.links.png)
+        .map((format) => downloadLink(`/v1/rewards/${encodeURIComponent(reward.reward_id)}?format=${format}&quantity=${quantity}`, format)),
+    ),
+  );
+}
+
+async function renderDownloads(job) {
+  const call = state.runCall;
+  const box = $("downloads");
+  box.replaceChildren(loading());
+  try {
+    const rewards = await getJson(`/v1/jobs/${encodeURIComponent(job.id)}/rewards`);
+    if (call !== state.runCall) return;
+    const d = state.demonstrators.get(job.demonstrator_id);
+    const tasks = d ? d.tasks.filter((t) => job.task_ids.includes(t.id)) : [];
+    const mdpIds = [...new Set(tasks.map((t) => t.mdp_id).filter(Boolean))];
+    const recordings = d ? d.recordings.filter((r) => r.protocol !== "standing") : []; // standing trials are not cut into demonstrations
+    box.replaceChildren(
+      el(
+        "table",
+        { class: "readout downloads-table" },
+        el(
+          "tbody",
+          {},
+          [rewards.baseline, ...rewards.tasks].map((r) =>
+            el("tr", { "data-reward": r.reward_id }, el("th", { class: "row" }, r.kind === "baseline" ? "baseline" : r.task_name || r.task_id), el("td", {}, rewardDownloads(r))),
+          ),
+          mdpIds.map((id) => el("tr", { "data-mdp": id }, el("th", { class: "row" }, `MDP ${mdpName(id)}`), el("td", {}, downloadLink(`/v1/mdps/${encodeURIComponent(id)}/arrays`, "arrays (.npz)")))),
+          recordings.map((r) =>
+            el(
+              "tr",
+              { "data-recording": r.id },
+              el("th", { class: "row" }, `recording ${r.name || r.id}`),
+              el("td", {}, "demonstrations: ", downloadLink(`/v1/recordings/${encodeURIComponent(r.id)}/demonstrations`, "json"), downloadLink(`/v1/recordings/${encodeURIComponent(r.id)}/demonstrations?format=csv`, "csv")),
+            ),
+          ),
+        ),
+      ),
+    );
+  } catch (error) {
+    if (call === state.runCall) box.replaceChildren(unavailable(error));
+  }
+}
+
+// ---- lightbox: a heatmap at full size ------------------------------------------------------------
+
+// The picture at its natural size; with ``channels`` ({reward, layout} of a layout with several channels)
+// also a button per channel that draws that channel alone, filling the screen.
+function openLightbox(src, title, channels) {
+  if (!src) return;
+  showWholePicture();
+  renderChannelButtons(channels);
+  $("lightbox-img").src = src;
+  $("lightbox-img").alt = `heatmap of ${title}, full size`;
+  $("lightbox-title").textContent = title;
+  $("lightbox-open").href = src;
+  $("lightbox").hidden = false;
+}
+
+function closeLightbox() {
+  $("lightbox").hidden = true;
+  state.lightboxCall += 1;
+  $("lightbox-img").removeAttribute("src");
+}
+
+// ---- MDPs ----------------------------------------------------------------------------------------
+
+async function loadMdps(generation) {
+  const mdps = await getAll("/v1/mdps");
+  if (generation !== state.generation) return;
+  state.mdps = mdps;
+  $("mdps").replaceChildren(
+    ...(mdps.length
+      ? mdps.map((m) =>
+          el(
+            "div",
+            { class: "mdp", "data-mdp": m.id },
+            el("span", { class: "dem-name" }, m.name || m.id),
+            " ",
+            el("span", { class: "meta" }, `${m.n_states} states × ${m.n_actions} actions`),
+            " ",
+            downloadLink(`/v1/mdps/${encodeURIComponent(m.id)}/arrays`, ".npz"),
+            " ",
+            deleteButton("mdp", m.id, `MDP ${m.name || m.id}`),
+          ),
+        )
+      : [el("p", { class: "empty" }, "No MDPs yet.")]),
+  );
+}
+
+function mdpName(id) {
+  const m = state.mdps.find((x) => x.id === id);
+  return m ? m.name || id : id;
+}
+
+// ---- submit a job --------------------------------------------------------------------------------
+
+function renderSubmitForm() {
+  const select = $("submit-demonstrator");
+  const previous = select.value;
+  const withTasks = [...state.demonstrators.values()].filter((d) => d.tasks.length > 0);
+  select.replaceChildren(...withTasks.map((d) => el("option", { value: d.id }, d.name)));
+  if (withTasks.some((d) => d.id === previous)) select.value = previous;
+  $("submit-job").disabled = withTasks.length === 0;
+  renderSubmitTasks();
+  if (!$("submit-config").firstChild) renderConfigFields();
+}
+
+function renderSubmitTasks() {
+  const d = state.demonstrators.get($("submit-demonstrator").value);
+  $("submit-tasks").replaceChildren(
+    el("legend", {}, "Tasks"),
+    ...(d ? d.tasks : []).map((t) => el("label", {}, el("input", { type: "checkbox", name: "task", value: t.id, checked: true }), ` ${t.name}`)),
+  );
+}
+
+// One input per JobConfig setting, empty with its default as the placeholder (empty: the default is used).
+function renderConfigFields() {
+  const props = state.configSchema;
+  if (!props) return;
+  $("submit-config").replaceChildren(
+    ...Object.entries(props).map(([name, schema]) => {
+      const shown = JSON.stringify(defaultOf(schema));
+      const range = settingRange(schema);
+      const input = schema.enum
+        ? el("select", { name }, el("option", { value: "" }, `${schema.default} (default)`), schema.enum.filter((v) => v !== schema.default).map((v) => el("option", { value: JSON.stringify(v) }, v)))
+        : el("input", { name, placeholder: shown, inputmode: schema.type === "number" || schema.type === "integer" ? "decimal" : undefined, spellcheck: "false" });
+      return el("label", { class: "config-field", title: `${schema.description || ""}${range ? ` (${range})` : ""}`, "data-setting": name }, el("span", {}, name, range ? el("small", {}, ` ${range}`) : null), input);
+    }),
+  );
+}
+
+// "≥ 0, < 1": a setting's bounds as the schema states them (inclusive or exclusive).
+function settingRange(schema) {
+  const bound = (key, sign) => (schema[key] === undefined ? "" : `${sign} ${schema[key] >= 1e6 ? schema[key].toExponential(1) : schema[key]}`);
+  return [bound("minimum", "≥"), bound("exclusiveMinimum", ">"), bound("maximum", "≤"), bound("exclusiveMaximum", "<")].filter(Boolean).join(", ");
+}
+
+// The settings typed in: JSON where it parses (numbers, lists, null), else the text as a string.
+function typedConfig() {
+  const config = {};
+  for (const field of $("submit-config").querySelectorAll("input, select")) {
+    const text = field.value.trim();
+    if (!text) continue;
+    try {
+      config[field.name] = JSON.parse(text);
+    } catch (_) {
+      config[field.name] = text;
+    }
+  }
+  return config;
+}
+
+function submitError(text) {
+  $("submit-error").textContent = text;
+  $("submit-error").hidden = !text;
+}
+
+async function submitJob(event) {
+  event.preventDefault();
+  const generation = state.generation;
+  const tasks = [...$("submit-tasks").querySelectorAll("input[name=task]:checked")].map((i) => i.value);
+  if (tasks.length === 0) {
+    submitError("Tick at least one task.");
+    return;
+  }
+  submitError("");
+  $("submit-job").disabled = true;
+  try {
+    const job = await getJson("/v1/jobs", {
+      method: "POST",
+      headers: { "Content-Type": "application/json" },
+      body: JSON.stringify({ demonstrator_id: $("submit-demonstrator").value, task_ids: tasks, config: typedConfig() }),
+    });
+    if (generation !== state.generation) return;
+    turnPage("first");
+    await loadJobs(generation);
+    showRun(job.id, { scroll: true });
+  } catch (error) {
+    if (generation !== state.generation) return;
+    if (error instanceof ApiError && error.status !== 401) submitError(`${error.status}: ${error.message}`);
+    else reportError(error);
+  } finally {
+    $("submit-job").disabled = false;
+  }
+}
+
+// ---- delete demonstrators, tasks, MDPs and jobs --------------------------------------------------
+
+const DELETE_PATHS = { demonstrator: "/v1/demonstrators/", task: "/v1/tasks/", mdp: "/v1/mdps/", job: "/v1/jobs/" };
+
+function deleteButton(kind, id, what) {
+  return el("button", { type: "button", class: "danger small", "data-action": `delete-${kind}`, title: `Delete ${what}`, onclick: () => deleteResource(kind, id, what) }, "Delete");
+}
+
+async function deleteResource(kind, id, what) {
+  if (!confirm(`Delete ${what}? This cannot be undone.`)) return;
+  const generation = state.generation;
+  try {
+    await api(DELETE_PATHS[kind] + encodeURIComponent(id), { method: "DELETE" });
+    if (generation !== state.generation) return;
+    // A demonstrator or task takes its jobs with it: the run page and results shown may be gone.
+    if (state.run === id || kind === "demonstrator" || kind === "task") {
+      state.run = null;
+      $("run").hidden = true;
+    }
+    if (state.selected === id || kind === "demonstrator" || kind === "task") {
+      state.selected = null;
+      $("results").hidden = true;
+    }
+    await loadDemonstrators(generation);
+    await Promise.all([loadJobs(generation), loadMdps(generation)]);
+    showMessage(`Deleted ${what}.`, "info");
+  } catch (error) {
+    if (generation === state.generation) reportError(error);
+  }
+}
+
+document.addEventListener("DOMContentLoaded", () => {
+  $("filter-status").addEventListener("change", () => turnPage("first"));
+  $("filter-demonstrator").addEventListener("change", () => turnPage("first"));
+  $("jobs-next").addEventListener("click", () => turnPage("next"));
+  $("jobs-prev").addEventListener("click", () => turnPage("prev"));
+  $("submit-demonstrator").addEventListener("change", renderSubmitTasks);
+  $("submit-form").addEventListener("submit", submitJob);
+  $("lightbox-close").addEventListener("click", closeLightbox);
+  $("lightbox").addEventListener("click", (event) => {
+    if (event.target === $("lightbox") || event.target.classList.contains("lightbox-body")) closeLightbox();
+  });
+  document.addEventListener("keydown", (event) => {
+    if (event.key === "Escape" && !$("lightbox").hidden) closeLightbox();
+  });
+});
+
+// ---- heatmap channels: one channel of a reward at full size, drawn from its values ----------------
+
+// Viridis (matplotlib's default colour map, as the server's heatmaps use) at five stops, interpolated.
+const VIRIDIS = [[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]];
+
+function viridis(t) {
+  const u = Math.min(1, Math.max(0, t)) * (VIRIDIS.length - 1);
+  const i = Math.min(VIRIDIS.length - 2, Math.floor(u));
+  const [a, b] = [VIRIDIS[i], VIRIDIS[i + 1]];
+  return `rgb(${a.map((c, k) => Math.round(c + (b[k] - c) * (u - i))).join(",")})`;
+}
+
+// The layout of the MDP a task is on (from the MDPs listed), or null.
+function layoutOfTask(taskId) {
+  for (const d of state.demonstrators.values()) {
+    const task = d.tasks.find((t) => t.id === taskId);
+    if (task) return state.mdps.find((m) => m.id === task.mdp_id)?.layout || null;
+  }
+  return null;
+}
+
+function renderChannelButtons(channels) {
+  const bar = $("lightbox-channels");
+  bar.hidden = !channels;
+  if (!channels) return bar.replaceChildren();
+  const pick = (button, draw) => {
+    for (const b of bar.querySelectorAll("button")) b.classList.toggle("quiet", b !== button);
+    draw();
+  };
+  const all = el("button", { type: "button", class: "small", "data-channel": "all" }, "all channels");
+  all.addEventListener("click", () => pick(all, showWholePicture));
+  const each = Array.from({ length: channels.layout.channels }, (_, c) => {
+    const button = el("button", { type: "button", class: "small quiet", "data-channel": c }, `channel ${c}`);
+    button.addEventListener("click", () => pick(button, () => drawChannel(channels.reward, channels.layout, c)));
+    return button;
+  });
+  bar.replaceChildren(all, ...each);
+}
+
+function showWholePicture() {
+  state.lightboxCall += 1;
+  $("lightbox-canvas").hidden = true;
+  $("lightbox-img").hidden = false;
+}
+
+// Channel ``channel`` of the reward (state = (channel·height + y)·width + x, y up), coloured on the range of
+// all channels so that channels compare, at the largest whole number of pixels per cell the window allows.
+async function drawChannel(reward, layout, channel) {
+  const call = ++state.lightboxCall;
+  const { values } = await getJson(`/v1/rewards/${encodeURIComponent(reward.reward_id)}?format=json`);
+  if (call !== state.lightboxCall) return;
+  const { width, height } = layout;
+  const lo = Math.min(...values);
+  const hi = Math.max(...values);
+  const cell = Math.max(4, Math.floor(Math.min((innerWidth - 40) / width, (innerHeight - 90) / height)));
+  const canvas = $("lightbox-canvas");
+  canvas.width = width * cell;
+  canvas.height = height * cell;
+  canvas.dataset.channel = channel;
+  const context = canvas.getContext("2d");
+  for (let y = 0; y < height; y++) {
+    for (let x = 0; x < width; x++) {
+      const v = values[(channel * height + y) * width + x];
+      context.fillStyle = viridis(hi > lo ? (v - lo) / (hi - lo) : 0.5);
+      context.fillRect(x * cell, (height - 1 - y) * cell, cell, cell);
+    }
+  }
+  $("lightbox-img").hidden = true;
+  canvas.hidden = false;
 }

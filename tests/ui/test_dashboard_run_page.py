@@ -1,0 +1,387 @@
+"""The dashboard as a run page, in a real browser (the system chromium, driven by Playwright) against a real
+`metairl serve`: the loss curve of a job, the job list's filters and paging, download links, heatmaps at full
+size, the layout of a 16-task result, submitting a job and deleting resources from the page.
+
+The demo data and jobs are those of `scripts/screenshots.py` (made once for the module). Screenshots go to
+`test-artifacts/ui/`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import httpx
+import pytest
+
+from scripts.screenshots import (
+    DENSE_PROGRESS,
+    FAST,
+    build_demo,
+    goal_demonstrator,
+    grid_mdp,
+    submit,
+    wait_for,
+)
+from service.domain.job_config import JobConfig
+from tests.served import Served, metairl_serve
+from tests.ui.helpers import ARTIFACTS, QUICK, ok, open_dashboard
+from tests.ui.test_dashboard_motion_and_webhooks import UNSTIMULATED, recorded
+
+if TYPE_CHECKING:
+    from playwright.sync_api import Browser, Page, Route
+
+pytestmark = [pytest.mark.worker, pytest.mark.slow, pytest.mark.browser]
+
+
+@dataclass(frozen=True)
+class Demo:
+    """A served app with the screenshot script's demo: an HTTP client with the key, and the ids by role."""
+
+    served: Served
+    http: httpx.Client
+    ids: dict[str, str]
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Demo]:
+    """`metairl serve` (API and worker, progress ten times a second) with the demo's finished jobs."""
+    with metairl_serve(tmp_path_factory.mktemp("serve"), settings=DENSE_PROGRESS) as served:
+        http = httpx.Client(
+            base_url=served.url, headers={"Authorization": f"Bearer {served.key}"}, timeout=60
+        )
+        yield Demo(served, http, build_demo(http))
+
+
+def dashboard(browser: Browser, demo: Demo) -> tuple[Page, list[str]]:
+    """The page with the key pasted, once the job list has rows."""
+    page, errors = open_dashboard(browser, demo.served.url, demo.served.key)
+    page.on("dialog", lambda dialog: dialog.accept())  # the confirm before each delete
+    page.wait_for_selector("#jobs tr[data-job]")
+    return page, errors
+
+
+def listed(page: Page) -> list[str]:
+    """The ids of the job rows shown."""
+    return [
+        str(i) for i in page.locator("#jobs tr[data-job]").evaluate_all("rs => rs.map(r => r.dataset.job)")
+    ]
+
+
+def test_run_page_draws_the_loss_curve_settings_and_best_step_of_a_job(demo: Demo, browser: Browser) -> None:
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    job_id = demo.ids["run"]
+    history = ok(demo.http.get(f"/v1/jobs/{job_id}/history"), 200)
+    job = ok(demo.http.get(f"/v1/jobs/{job_id}"), 200)
+    assert len(history["points"]) >= 5, history  # progress samples while it ran, not only the last one
+    page, errors = dashboard(browser, demo)
+    row = page.locator(f"tr[data-job='{job_id}']")
+    assert "max_steps=1500" in row.locator("[data-role='config']").inner_text()
+    assert row.locator("[data-role='best-step']").inner_text().startswith(str(job["best_step"]))
+
+    row.locator("[data-action='run']").click()
+    curve = page.locator(f"#run[data-job='{job_id}'] #loss-curve svg")
+    curve.wait_for()
+    assert curve.get_attribute("data-points") == str(len(history["points"]))
+    series = curve.locator("path").evaluate_all("ps => ps.map(p => p.dataset.series)")
+    assert {"loss", "irl_loss", "sharing_loss"} <= set(series)
+    assert curve.locator("path[data-series='loss']").evaluate("p => p.getTotalLength()") > 100
+    assert curve.locator("[data-role='best-step']").count() == 1
+    settings = page.locator("#run-config tr[data-setting]").evaluate_all(
+        "rs => rs.map(r => r.dataset.setting)"
+    )
+    assert {"max_steps", "learning_rate", "hidden"} <= set(settings) and "method" not in settings
+    page.locator("#run").screenshot(path=ARTIFACTS / "run-page.png")
+    assert errors == []
+
+
+def test_loss_curve_grows_from_the_event_stream_while_a_job_runs(demo: Demo, browser: Browser) -> None:
+    job_id = submit(demo.http, demo.ids["four_tasks"], FAST | {"max_steps": 4000})
+    page, errors = dashboard(browser, demo)
+    page.locator(f"tr[data-job='{job_id}'] [data-action='run']").click()
+    page.wait_for_selector(f"#run[data-job='{job_id}'] #loss-curve svg")
+    first = int(page.locator("#loss-curve svg").get_attribute("data-points") or 0)
+    page.wait_for_function(
+        "n => Number(document.querySelector('#loss-curve svg')?.dataset.points) > n + 3", arg=first
+    )
+    ok(demo.http.post(f"/v1/jobs/{job_id}/cancel"), 202)
+    wait_for(demo.http, [job_id])
+    assert errors == []
+
+
+def test_every_download_link_answers_200_and_saves_a_file(demo: Demo, browser: Browser) -> None:
+    page, errors = dashboard(browser, demo)
+    page.locator(f"tr[data-job='{demo.ids['two']}'] [data-action='run']").click()
+    page.wait_for_selector("#downloads a[data-download]")
+    links = page.locator("#downloads a[data-download]").evaluate_all("as => as.map(a => a.dataset.download)")
+    # the baseline's reward in 4 formats; per task reward 4, value 4, policy 3; the MDP's arrays
+    assert len(links) == 4 + 2 * 11 + 1, links
+    assert any("quantity=policy" in link and "format=npy" in link for link in links)
+    assert any(link.endswith("/arrays") for link in links)
+    for link in links:
+        assert demo.http.get(link).status_code == 200, link
+    with page.expect_download() as download:
+        page.locator("#downloads a[data-download*='format=csv&quantity=value']").first.click()
+    assert download.value.suggested_filename.endswith(".csv")
+    assert errors == []
+
+
+def test_a_recorded_sessions_run_page_links_its_demonstrations_and_each_velocity_channel(
+    demo: Demo, browser: Browser
+) -> None:
+    session = recorded(demo.http, "recorded session", UNSTIMULATED)
+    job_id = submit(demo.http, session, QUICK)
+    wait_for(demo.http, [job_id])
+    page, errors = dashboard(browser, demo)
+    page.locator(f"tr[data-job='{job_id}'] [data-action='run']").click()
+    page.wait_for_selector("#downloads tr[data-recording] a[data-download]")
+    links = page.locator("#downloads tr[data-recording] a").evaluate_all(
+        "as => as.map(a => a.dataset.download)"
+    )
+    assert len(links) == 2 and links[0].endswith("/demonstrations") and links[1].endswith("?format=csv")
+    for link in links:
+        response = demo.http.get(link)
+        assert response.status_code == 200, link
+    assert response.text.startswith("trajectory,step,state,action")
+    page.wait_for_function(
+        "() => [...document.querySelectorAll('#heatmaps img')].every(i => i.naturalWidth > 0)"
+    )
+    page.locator("#heatmaps img").nth(1).click()
+    assert page.locator("#lightbox-channels button").count() == 1 + 8  # all, and the eight directions
+    assert errors == []
+
+
+def test_results_of_16_tasks_never_overlap_and_a_heatmap_opens_full_size(
+    demo: Demo, browser: Browser
+) -> None:
+    page, errors = dashboard(browser, demo)
+    page.locator(f"tr[data-job='{demo.ids['sixteen']}'] [data-action='results']").click()
+    page.wait_for_selector(f"#results[data-job='{demo.ids['sixteen']}']")
+    page.wait_for_function(
+        "() => { const imgs = [...document.querySelectorAll('#heatmaps img')];"
+        " return imgs.length === 17 && imgs.every(i => i.complete && i.naturalWidth > 0 && !i.hidden); }"
+    )
+    assert page.locator("#heatmaps [data-role='placeholder']").count() == 0
+    page.wait_for_function("() => document.querySelectorAll('#key-states table').length === 16")
+    boxes = page.evaluate(
+        """() => ['#heatmaps', '#matrix table', '#key-states', '.webhooks'].map(s => {
+             const r = document.querySelector(s).getBoundingClientRect();
+             return {s, left: r.left, right: r.right, top: r.top, bottom: r.bottom}; })"""
+    )
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1 :]:
+            apart = (
+                a["right"] <= b["left"]
+                or b["right"] <= a["left"]
+                or a["bottom"] <= b["top"]
+                or b["bottom"] <= a["top"]
+            )
+            assert apart, (a, b)
+    overflow = page.evaluate(
+        "() => document.documentElement.scrollWidth - document.documentElement.clientWidth"
+    )
+    assert overflow <= 0, "the page scrolls sideways"
+    page.screenshot(path=ARTIFACTS / "results-16-tasks.png", full_page=True)
+
+    first = page.locator("#heatmaps img").nth(1)
+    shown = first.bounding_box()
+    first.click()
+    page.wait_for_selector("#lightbox:not([hidden]) #lightbox-img")
+    page.wait_for_function("() => document.querySelector('#lightbox-img').naturalWidth > 0")
+    big = page.locator("#lightbox-img").bounding_box()
+    assert shown is not None and big is not None and big["width"] > shown["width"]
+    page.keyboard.press("Escape")
+    page.wait_for_selector("#lightbox", state="hidden")
+    assert errors == []
+
+
+def test_a_heatmap_shows_a_placeholder_not_a_broken_image_until_it_has_loaded(
+    demo: Demo, browser: Browser
+) -> None:
+    page, errors = dashboard(browser, demo)
+    held: list[Route] = []
+    page.route(lambda url: "format=png" in url, lambda route: held.append(route))
+    page.locator(f"tr[data-job='{demo.ids['two']}'] [data-action='results']").click()
+    page.wait_for_function("() => document.querySelectorAll('#heatmaps img').length === 3")
+    while len(held) < 3:
+        page.wait_for_timeout(50)
+    assert page.locator("#heatmaps [data-role='placeholder']").count() == 3
+    assert page.locator("#heatmaps img:visible").count() == 0  # nothing shown half-loaded or broken
+    for route in held:
+        route.continue_()
+    page.wait_for_selector("#heatmaps [data-role='placeholder']", state="detached")
+    assert page.locator("#heatmaps img:visible").count() == 3
+    assert errors == []
+
+
+def two_channel_demonstrator(http: httpx.Client) -> str:
+    """A demonstrator with two tasks on a 3×2 grid with two channels (action 0 moves right along the row,
+    wrapping; action 1 switches channel); each task walks to one cell of channel 1; its id."""
+    width, height, channels = 3, 2, 2
+    n = width * height * channels
+
+    def move(s: int, a: int) -> int:
+        c, rest = divmod(s, width * height)
+        y, x = divmod(rest, width)
+        return (1 - c) * width * height + rest if a else c * width * height + y * width + (x + 1) % width
+
+    mdp = ok(
+        http.post(
+            "/v1/mdps",
+            json={
+                "kind": "explicit",
+                "name": "two channels",
+                "n_states": n,
+                "n_actions": 2,
+                "gamma": 0.9,
+                "transitions": {
+                    "kind": "deterministic",
+                    "next_state": [[move(s, a) for a in (0, 1)] for s in range(n)],
+                },
+                "layout": {"width": width, "height": height, "channels": channels},
+            },
+        )
+    )
+    dem = ok(http.post("/v1/demonstrators", json={"name": "two channels"}))
+    for name, goal_x in (("channel 1, x 2", 2), ("channel 1, x 1", 1)):
+        task = ok(http.post(f"/v1/demonstrators/{dem['id']}/tasks", json={"name": name, "mdp_id": mdp["id"]}))
+        trajectories = []
+        for start in range(width):
+            actions = [1] + [0] * ((goal_x - start) % width)
+            states = [start]
+            for a in actions:
+                states.append(move(states[-1], a))
+            trajectories.append({"states": states, "actions": actions})
+        ok(http.post(f"/v1/tasks/{task['id']}/demonstrations", json={"trajectories": trajectories}))
+    return str(dem["id"])
+
+
+def test_the_lightbox_draws_one_channel_of_a_reward_at_full_size(demo: Demo, browser: Browser) -> None:
+    job_id = submit(demo.http, two_channel_demonstrator(demo.http), FAST)
+    wait_for(demo.http, [job_id])
+    task = ok(demo.http.get(f"/v1/jobs/{job_id}/rewards"), 200)["tasks"][0]
+    values = ok(demo.http.get(f"/v1/rewards/{task['reward_id']}?format=json"), 200)["values"]
+    best = max(range(len(values)), key=values.__getitem__)
+    channel, rest = divmod(best, 6)
+    y, x = divmod(rest, 3)
+    page, errors = dashboard(browser, demo)
+    page.locator(f"tr[data-job='{job_id}'] [data-action='results']").click()
+    page.wait_for_function(
+        "() => [...document.querySelectorAll('#heatmaps img')].every(i => i.naturalWidth > 0)"
+    )
+    page.locator("#heatmaps img").nth(1).click()
+    buttons = page.locator("#lightbox-channels button").evaluate_all("bs => bs.map(b => b.dataset.channel)")
+    assert buttons == ["all", "0", "1"]
+    page.click(f"#lightbox-channels button[data-channel='{channel}']")
+    canvas = page.locator(f"#lightbox-canvas[data-channel='{channel}']")
+    canvas.wait_for()
+    size = canvas.evaluate("c => [c.width, c.height]")
+    assert size[0] * 2 == size[1] * 3 and size[0] >= 300  # 3×2 cells, enlarged
+    colour = canvas.evaluate(
+        "(c, [x, y]) => { const cell = c.width / 3;"
+        " return [...c.getContext('2d').getImageData((x + .5) * cell, (1 - y + .5) * cell, 1, 1).data].slice(0, 3); }",
+        [x, y],
+    )
+    assert colour == [253, 231, 37]  # the highest reward, yellow at the top of the colour map
+    page.click("#lightbox-channels button[data-channel='all']")
+    assert page.locator("#lightbox-img").is_visible() and page.locator("#lightbox-canvas").is_hidden()
+    assert errors == []
+
+
+def test_a_job_submitted_from_the_form_is_created_with_the_settings_typed(
+    demo: Demo, browser: Browser
+) -> None:
+    page, errors = dashboard(browser, demo)
+    # The settings show their defaults, from the OpenAPI schema of JobConfig.
+    page.click("#submit-settings summary")
+    default = JobConfig.model_fields["max_steps"].default
+    assert page.locator("#submit-config input[name='max_steps']").get_attribute("placeholder") == str(default)
+    page.select_option("#submit-demonstrator", demo.ids["four_tasks"])
+    page.locator("#submit-tasks input[name=task]").nth(3).uncheck()
+    page.fill("#submit-config input[name='max_steps']", "30")
+    page.fill("#submit-config input[name='hidden']", "[8]")
+    page.select_option("#submit-config select[name='sharing']", '"l2"')
+    before = set(listed(page))
+    page.click("#submit-job")
+    page.wait_for_function("n => document.querySelectorAll('#jobs tr[data-job]').length > n", arg=len(before))
+    (new,) = set(listed(page)) - before
+    job = ok(demo.http.get(f"/v1/jobs/{new}"), 200)
+    assert job["demonstrator_id"] == demo.ids["four_tasks"] and len(job["task_ids"]) == 3
+    assert (
+        job["config"]["max_steps"] == 30
+        and job["config"]["hidden"] == [8]
+        and job["config"]["sharing"] == "l2"
+    )
+    page.wait_for_selector(f"#run[data-job='{new}']")
+
+    # A bad setting is a problem shown beside the form, naming the field; no job is made.
+    page.fill("#submit-config input[name='max_steps']", "-4")
+    page.click("#submit-job")
+    page.wait_for_selector("#submit-error:not([hidden])")
+    assert "max_steps" in page.inner_text("#submit-error")
+    wait_for(demo.http, [new])
+    assert errors == []
+
+
+def test_delete_buttons_remove_a_job_an_mdp_a_task_and_a_demonstrator(demo: Demo, browser: Browser) -> None:
+    spare_mdp = grid_mdp(demo.http)
+    job_id = submit(demo.http, demo.ids["two_tasks"], FAST | {"max_steps": 5})
+    wait_for(demo.http, [job_id])
+    doomed = goal_demonstrator(demo.http, demo.ids["mdp"], "withdrawn", 2)
+    page, errors = dashboard(browser, demo)
+
+    page.locator(f"tr[data-job='{job_id}'] [data-action='delete-job']").click()
+    page.wait_for_selector(f"tr[data-job='{job_id}']", state="detached")
+    assert demo.http.get(f"/v1/jobs/{job_id}").status_code == 404
+
+    page.locator(f"#mdps [data-mdp='{spare_mdp}'] [data-action='delete-mdp']").click()
+    page.wait_for_selector(f"#mdps [data-mdp='{spare_mdp}']", state="detached")
+    assert demo.http.get(f"/v1/mdps/{spare_mdp}").status_code == 404
+
+    task = page.locator(f"[data-demonstrator='{doomed}'] li[data-task]").first
+    task_id = task.get_attribute("data-task")
+    task.locator("[data-action='delete-task']").click()
+    page.wait_for_selector(f"li[data-task='{task_id}']", state="detached")
+    assert demo.http.get(f"/v1/tasks/{task_id}").status_code == 404
+
+    page.locator(f"[data-demonstrator='{doomed}'] [data-action='delete-demonstrator']").click()
+    page.wait_for_selector(f"[data-demonstrator='{doomed}']", state="detached")
+    assert demo.http.get(f"/v1/demonstrators/{doomed}").status_code == 404
+    assert errors == []
+
+
+def test_filters_by_status_and_demonstrator_and_paging_change_the_job_list(
+    demo: Demo, browser: Browser
+) -> None:
+    page, errors = dashboard(browser, demo)
+    everything = listed(page)
+    assert {demo.ids[k] for k in ("two", "four_l2", "run", "sixteen")} <= set(everything)
+
+    page.select_option("#filter-demonstrator", demo.ids["sixteen_tasks"])
+    page.wait_for_function("() => document.querySelectorAll('#jobs tr[data-job]').length === 1")
+    assert listed(page) == [demo.ids["sixteen"]]
+    page.select_option("#filter-demonstrator", demo.ids["four_tasks"])
+    page.select_option("#filter-status", "failed")
+    page.wait_for_selector("#jobs-empty:not([hidden])")
+    assert listed(page) == []
+    page.select_option("#filter-status", "")
+    page.select_option("#filter-demonstrator", "")
+    page.wait_for_function(
+        "n => document.querySelectorAll('#jobs tr[data-job]').length === n", arg=len(everything)
+    )
+
+    # Paging: 15 a page, newest first; a second page holds the older jobs and "Newer" returns.
+    for _ in range(16 - len(everything)):
+        submit(demo.http, demo.ids["two_tasks"], FAST | {"max_steps": 5})
+    page.click("#refresh")
+    page.wait_for_function("() => !document.querySelector('#jobs-next').disabled")
+    first_page = listed(page)
+    assert len(first_page) == 15
+    page.click("#jobs-next")
+    page.wait_for_function("() => document.querySelector('#jobs-page').textContent === 'page 2'")
+    page.wait_for_function("() => document.querySelectorAll('#jobs tr[data-job]').length === 1")
+    assert not set(listed(page)) & set(first_page)
+    page.click("#jobs-prev")
+    page.wait_for_function("() => document.querySelectorAll('#jobs tr[data-job]').length === 15")
+    assert errors == []
