@@ -18,7 +18,6 @@ from itertools import permutations
 from typing import Literal
 
 import numpy as np
-from scipy.stats import rankdata
 
 from metairl_engine.grids import DIRECTION_NAMES, velocity_coords
 
@@ -96,6 +95,8 @@ class Agreement:
 
 def _spearman_rows(ranked_learned: np.ndarray, reach: np.ndarray) -> np.ndarray:
     """Spearman ρ of one rank vector (n,) with each row of ``reach`` (m, n) (average ranks for ties)."""
+    from scipy.stats import rankdata  # here only: the API process imports this module and never needs scipy
+
     ranks = rankdata(reach, axis=-1)
     a = ranked_learned - ranked_learned.mean()
     b = ranks - ranks.mean(axis=-1, keepdims=True)
@@ -132,6 +133,8 @@ def agreement(
     values = np.array([float(learned[d]) for d in names])  # type: ignore[arg-type]
     reps = [np.asarray(reach[d], dtype=np.float64) for d in names]
     means = np.array([r.mean() for r in reps])
+    from scipy.stats import rankdata  # here only, as in `_spearman_rows`
+
     ranked = rankdata(values)
     rho = float(_spearman_rows(ranked, means[None, :])[0])
     orders = np.array(list(permutations(range(n))))  # n ≤ 8: at most 40,320 orders, exact

@@ -58,11 +58,17 @@ def receiver(delay_s: float = 0.0) -> Iterator[tuple[int, list[tuple[float, dict
 
 
 @pytest.fixture
-def hook_app(settings: Settings) -> Iterator[FastAPI]:
-    """The app with loopback webhook targets allowed and short delivery timings."""
+def hook_app(settings: Settings, empty_database_url: str) -> Iterator[FastAPI]:
+    """The app with loopback webhook targets allowed and short delivery timings, on a database of its own
+    (its sending threads write deliveries while the test runs: they must not share the session's SQLite file)."""
     app = create_app(
         settings.model_copy(
-            update={"webhook_allow_private": True, "webhook_poll_s": 0.05, "webhook_timeout_s": 2 * SLOW_S}
+            update={
+                "database_url": empty_database_url,
+                "webhook_allow_private": True,
+                "webhook_poll_s": 0.05,
+                "webhook_timeout_s": 2 * SLOW_S,
+            }
         )
     )
     yield app
