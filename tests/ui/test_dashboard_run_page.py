@@ -145,9 +145,9 @@ def test_a_recorded_sessions_run_page_links_its_demonstrations_and_each_velocity
         assert response.status_code == 200, link
     assert response.text.startswith("trajectory,step,state,action")
     page.wait_for_function(
-        "() => [...document.querySelectorAll('#heatmaps img')].every(i => i.naturalWidth > 0)"
+        "() => [...document.querySelectorAll('#heatmaps img[data-reward]')].every(i => i.naturalWidth > 0)"
     )
-    page.locator("#heatmaps img").nth(1).click()
+    page.locator("#heatmaps img[data-reward]").nth(1).click()
     assert page.locator("#lightbox-channels button").count() == 1 + 8  # all, and the eight directions
     assert errors == []
 
@@ -159,10 +159,10 @@ def test_results_of_16_tasks_never_overlap_and_a_heatmap_opens_full_size(
     page.locator(f"tr[data-job='{demo.ids['sixteen']}'] [data-action='results']").click()
     page.wait_for_selector(f"#results[data-job='{demo.ids['sixteen']}']")
     page.wait_for_function(
-        "() => { const imgs = [...document.querySelectorAll('#heatmaps img')];"
+        "() => { const imgs = [...document.querySelectorAll('#heatmaps img[data-reward]')];"
         " return imgs.length === 17 && imgs.every(i => i.complete && i.naturalWidth > 0 && !i.hidden); }"
     )
-    assert page.locator("#heatmaps [data-role='placeholder']").count() == 0
+    page.wait_for_selector("#heatmaps [data-role='placeholder']", state="detached")  # the spreads too
     page.wait_for_function("() => document.querySelectorAll('#key-states table').length === 16")
     boxes = page.evaluate(
         """() => ['#heatmaps', '#matrix table', '#key-states', '.webhooks'].map(s => {
@@ -184,7 +184,7 @@ def test_results_of_16_tasks_never_overlap_and_a_heatmap_opens_full_size(
     assert overflow <= 0, "the page scrolls sideways"
     page.screenshot(path=ARTIFACTS / "results-16-tasks.png", full_page=True)
 
-    first = page.locator("#heatmaps img").nth(1)
+    first = page.locator("#heatmaps img[data-reward]").nth(1)
     shown = first.bounding_box()
     first.click()
     page.wait_for_selector("#lightbox:not([hidden]) #lightbox-img")
@@ -203,15 +203,20 @@ def test_a_heatmap_shows_a_placeholder_not_a_broken_image_until_it_has_loaded(
     held: list[Route] = []
     page.route(lambda url: "format=png" in url, lambda route: held.append(route))
     page.locator(f"tr[data-job='{demo.ids['two']}'] [data-action='results']").click()
-    page.wait_for_function("() => document.querySelectorAll('#heatmaps img').length === 3")
-    while len(held) < 3:
+    page.wait_for_function("() => document.querySelectorAll('#heatmaps img[data-reward]').length === 3")
+    pictures = page.locator(
+        "#heatmaps img"
+    ).count()  # each reward's heatmap and, from an ensemble, its spread
+    while len(held) < pictures:
         page.wait_for_timeout(50)
-    assert page.locator("#heatmaps [data-role='placeholder']").count() == 3
-    assert page.locator("#heatmaps img:visible").count() == 0  # nothing shown half-loaded or broken
+    assert page.locator("#heatmaps [data-role='placeholder']").count() == pictures
+    assert (
+        page.locator("#heatmaps img[data-reward]:visible").count() == 0
+    )  # nothing shown half-loaded or broken
     for route in held:
         route.continue_()
     page.wait_for_selector("#heatmaps [data-role='placeholder']", state="detached")
-    assert page.locator("#heatmaps img:visible").count() == 3
+    assert page.locator("#heatmaps img[data-reward]:visible").count() == 3
     assert errors == []
 
 
@@ -268,9 +273,9 @@ def test_the_lightbox_draws_one_channel_of_a_reward_at_full_size(demo: Demo, bro
     page, errors = dashboard(browser, demo)
     page.locator(f"tr[data-job='{job_id}'] [data-action='results']").click()
     page.wait_for_function(
-        "() => [...document.querySelectorAll('#heatmaps img')].every(i => i.naturalWidth > 0)"
+        "() => [...document.querySelectorAll('#heatmaps img[data-reward]')].every(i => i.naturalWidth > 0)"
     )
-    page.locator("#heatmaps img").nth(1).click()
+    page.locator("#heatmaps img[data-reward]").nth(1).click()
     buttons = page.locator("#lightbox-channels button").evaluate_all("bs => bs.map(b => b.dataset.channel)")
     assert buttons == ["all", "0", "1"]
     page.click(f"#lightbox-channels button[data-channel='{channel}']")
