@@ -60,6 +60,7 @@ class Family:
     multi: bool
     demos: tuple[int, ...]
     frozen: bool = False
+    goal_bonus: float = GOAL_BONUS
 
 
 FROZEN_SEED = 10_000
@@ -70,6 +71,10 @@ FAMILIES: dict[str, Family] = {
     "binaryworld": Family(lambda i: make_binaryworld(seed=100 + i), multi=False, demos=(16, 64)),
     "multi-objectworld": Family(lambda i: make_objectworld(seed=200 + i)[0], multi=True, demos=(3, 10)),
     "multi-binaryworld": Family(lambda i: make_binaryworld(seed=300 + i), multi=True, demos=(3, 10)),
+    # The goal bonus of the terrain (+3): most demonstrations stay near +1 regions instead of reaching the goal.
+    "multi-objectworld-bonus3": Family(
+        lambda i: make_objectworld(seed=200 + i)[0], multi=True, demos=(3, 10), goal_bonus=3.0
+    ),
     # Frozen: discrete features, calmer wind, its own seeds; only reported, never used to choose anything.
     "multi-objectworld-discrete (frozen)": Family(
         lambda i: make_objectworld(seed=FROZEN_SEED + i, discrete=True, wind=0.1)[0],
@@ -92,6 +97,9 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "no-holdout": {"holdout_fraction": 0.0},
     "narrow": {"hidden": (32, 16)},
     "l2": {"sharing": "l2"},
+    "patience0": {"patience": 0},
+    "patience500": {"patience": 500},
+    "base4": {"baseline_features": (0, 1, 2, 3)},
 }
 """Named FitConfig overrides; ``default`` is whatever FitConfig() is at the time of the run."""
 
@@ -111,7 +119,9 @@ def key_of(variant: str) -> str:
 def tasks_of(family: Family, world: RewardWorld, index: int, n_demos: int) -> list[SimTask]:
     """The family's tasks on ``world``: 8 goal tasks, or the world's reward as one task."""
     if family.multi:
-        return goal_tasks(world, n_tasks=N_TASKS, n_demos=n_demos, seed=7_000 + index, goal_bonus=GOAL_BONUS)
+        return goal_tasks(
+            world, n_tasks=N_TASKS, n_demos=n_demos, seed=7_000 + index, goal_bonus=family.goal_bonus
+        )
     return [single_task(world, n_demos=n_demos, seed=7_000 + index)]
 
 

@@ -134,11 +134,12 @@ class _Problem:
         if features is None and config.tabular_inputs == "coordinates":
             features = state_coordinates([t.mdp for t in tasks], seed=config.seed)
         base_columns = _baseline_columns(config, features)
-        self.features = None if features is None else _encode(features, config)
+        task_features = _with_coordinates(features, [t.mdp for t in tasks], config)
+        self.features = None if task_features is None else _encode(task_features, config)
         self.base_features = (
             self.features
-            if features is None or base_columns is None
-            else _encode(features[:, base_columns], config)
+            if features is None or (base_columns is None and task_features is features)
+            else _encode(features if base_columns is None else features[:, base_columns], config)
         )
         demos = [t.trajectories for t in tasks]
         folds = [
@@ -281,6 +282,19 @@ def sharing_blocks(mdps: Sequence[MDP], n_blocks: int, *, seed: int) -> list[np.
 def _encode(features: np.ndarray, config: FitConfig) -> torch.Tensor:
     """Network inputs from state features: the raw columns and their Fourier waves (`fourier_octaves`)."""
     return torch.from_numpy(fourier_features(np.ascontiguousarray(features), octaves=config.fourier_octaves))
+
+
+def _with_coordinates(
+    features: np.ndarray | None, mdps: Sequence[MDP], config: FitConfig
+) -> np.ndarray | None:
+    """The task networks' inputs: the features, followed by the states' coordinates when
+    `FitConfig.task_coordinates` asks for them and no feature column already is one of them."""
+    if features is None or mdps[0].features is None or not config.task_coordinates:
+        return features  # no features, or coordinates standing in for them
+    coordinates = state_coordinates(mdps, seed=config.seed)
+    if coordinates is None or all(any(np.array_equal(c, f) for f in features.T) for c in coordinates.T):
+        return features
+    return np.concatenate([features, coordinates], axis=1).astype(np.float32)
 
 
 def _baseline_columns(config: FitConfig, features: np.ndarray | None) -> list[int] | None:
