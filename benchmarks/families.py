@@ -43,8 +43,12 @@ CACHE = HERE / "families_results.json"
 PAGE = HERE / "FAMILIES.md"
 COMMAND = ".venv/bin/python -m benchmarks.families"
 
-REVISION = "fam1"
+REVISION = "fam3"
 """Engine revision of the cached rows: change it whenever the engine changes what a fit returns."""
+
+EARLIER = "fam1"
+"""The engine before `FitConfig.task_coordinates` (task networks saw the MDP's features alone): its rows
+stay in the cache and on the page, for before/after."""
 
 N_TASKS = 8
 GOAL_BONUS = 10.0
@@ -173,8 +177,15 @@ def header() -> str:
     )
 
 
-def table(rows: list[dict[str, Any]], variants: list[str], worlds: int) -> str:
-    """Markdown: family × demos rows, per variant Pearson and EVD / random (mean over worlds)."""
+def _selected(row: dict[str, Any], variant: str, revision: str) -> bool:
+    """Is ``row`` a fit of ``variant`` on ``revision`` (today's: exactly today's config)?"""
+    if revision == REVISION:
+        return bool(row["key"] == key_of(variant))
+    return bool(row["variant"] == variant and row["key"].startswith(revision + ":"))
+
+
+def table(rows: list[dict[str, Any]], variants: list[str], worlds: int, revision: str = REVISION) -> str:
+    """Markdown: family × demos rows, per variant Pearson, EVD / random and EPIC (mean over worlds)."""
     head = (
         " | ".join(f"{v} Pearson" for v in variants) + " | " + " | ".join(f"{v} EVD/rand" for v in variants)
     )
@@ -190,7 +201,7 @@ def table(rows: list[dict[str, Any]], variants: list[str], worlds: int) -> str:
                     for r in rows
                     if r["family"] == name
                     and r["demos"] == demos
-                    and r["key"] == key_of(v)
+                    and _selected(r, v, revision)
                     and r["world"] < worlds
                 ]
                 counts.add(len(sel))
@@ -245,22 +256,64 @@ def main() -> None:
         PAGE.write_text(page(rows, args.worlds))
 
 
+DIAGNOSED = ("multi-objectworld", 10)
+"""Where the sharing was measured knob by knob (family, demonstrations per task), on the engine `EARLIER`."""
+
+
+def diagnostics(rows: list[dict[str, Any]]) -> str:
+    """Markdown: each diagnostic variant's Pearson, EVD / random, baseline Pearson and steps on DIAGNOSED."""
+    family, demos = DIAGNOSED
+    lines = [
+        "| variant | overrides | Pearson | EVD/rand | baseline vs world reward | steps (kept) | worlds |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for v, overrides in VARIANTS.items():
+        sel = [r for r in rows if r["family"] == family and r["demos"] == demos and _selected(r, v, EARLIER)]
+        sel = [r for r in sel if r["world"] < 2]
+        if not sel or v == "maxent":
+            continue
+        mean = {
+            k: np.mean([r[k] for r in sel])
+            for k in ("pearson", "evd_random", "baseline_pearson", "steps", "kept_step")
+        }
+        lines.append(
+            f"| {v} | `{json.dumps(overrides)}` | {mean['pearson']:.3f} | {mean['evd_random']:.3f} | "
+            f"{mean['baseline_pearson']:.3f} | {mean['steps']:.0f} ({mean['kept_step']:.0f}) | {len(sel)} |"
+        )
+    return "\n".join(lines)
+
+
+FINDINGS = """TODO"""
+"""What the measurements say (written by hand from the tables below; keep it in step with them)."""
+
+
 def page(rows: list[dict[str, Any]], worlds: int) -> str:
-    """FAMILIES.md: header, the protocol, the table."""
+    """FAMILIES.md: header, protocol, today's table, the earlier engine's, the sharing diagnostics."""
     frozen = [n for n, f in FAMILIES.items() if f.frozen]
+    family, demos = DIAGNOSED
     return (
         "# Benchmark families: objectworld and binaryworld, single- and multi-task\n\n"
         + header()
         + "\n\n"
-        + f"Mean over worlds 0 … {worlds - 1} of each family. Multi-task: {N_TASKS} goal tasks on one world, task "
-        f"reward = world reward + {GOAL_BONUS:g} at its goal, demonstrations from random non-goal starts to the goal "
-        "(at most 3·size steps); single-task: demonstrations of 8 steps from uniform starts. Demonstrator: "
-        "softmax(2·Q_soft) of the task's true reward. 32×32 grids, 5 actions, wind 0.3 (frozen: 0.1), γ 0.9. "
-        "Pearson: learned vs true task reward, goal cell excluded; EVD/rand: true value lost by the learned reward's "
-        "optimal policy from uniform starts, as a fraction of a uniform random policy's loss (0 perfect, 1 no better "
-        "than random); EPIC: with the MDP's dynamics, 0 perfect.\n\n"
+        + f"Mean over worlds 0 … {worlds - 1} of each family. Multi-task: {N_TASKS} goal tasks on one world, "
+        f"task reward = world reward + {GOAL_BONUS:g} at its goal (the `-bonus3` row: + 3), demonstrations from "
+        "random non-goal starts to the goal (at most 3·size steps); single-task: demonstrations of 8 steps "
+        "from uniform starts. Demonstrator: softmax(2·Q_soft) of the task's true reward. 32×32 grids, 5 "
+        "actions, wind 0.3 (frozen: 0.1), γ 0.9, objectworld with continuous features (frozen: discrete). "
+        "Pearson: learned vs true task reward, goal cell excluded; EVD/rand: true value lost by the learned "
+        "reward's optimal policy from uniform starts, as a fraction of a uniform random policy's loss (0 "
+        "perfect, 1 no better than random); EPIC: with the MDP's dynamics, 0 perfect.\n\n"
         + f"Never used for any choice (frozen): {', '.join(frozen)}: worlds of seeds ≥ {FROZEN_SEED}, discrete "
-        "features.\n\n" + table(rows, list(TABLE_VARIANTS), worlds) + "\n"
+        "features, wind 0.1.\n\n"
+        + f"## Today's engine (revision `{REVISION}`)\n\n"
+        + table(rows, list(TABLE_VARIANTS), worlds)
+        + f"\n\n## Before: task networks saw the MDP's features alone (revision `{EARLIER}`)\n\n"
+        + table(rows, list(TABLE_VARIANTS), worlds, revision=EARLIER)
+        + f"\n\n## The sharing, knob by knob ({family}, {demos} demonstrations per task, revision `{EARLIER}`)\n\n"
+        + diagnostics(rows)
+        + "\n\n"
+        + FINDINGS
+        + "\n"
     )
 
 
