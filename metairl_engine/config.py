@@ -55,7 +55,7 @@ class FitConfig:
 
     task_coordinates: bool = True
     """The task (VR) networks also see each state's coordinates (`coordinates.state_coordinates`: from the
-    layout, else recovered from the transition graph) and their sinusoids at 3 octaves besides the MDP's
+    layout, else recovered from the transition graph) and their sinusoids at 2 octaves besides the MDP's
     state features, unless the features already hold them; the baseline network sees the features alone. A task's own reward — a goal — is a
     place, which features describing the world (distances to objects, colours around a cell) cannot single
     out: without the place a task network spreads its goal over every state whose features look alike.
