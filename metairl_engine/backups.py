@@ -55,7 +55,8 @@ class QRows:
                 -1
             )
             return
-        rows, cols, vals = [], [], []
+        empty = np.zeros(0, dtype=np.int64)  # no rows at all (no hold-out): an empty matrix, not an error
+        rows, cols, vals = [empty], [empty], [np.zeros(0)]
         for t, mdp in enumerate(mdps):
             mine = np.flatnonzero(tasks == t)
             if mine.size == 0:

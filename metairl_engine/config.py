@@ -80,6 +80,14 @@ class FitConfig:
     see docs/motion.md (identifiability) for why motion fits want it. Needs state features, or the coordinates
     an MDP without them gets (``tabular_inputs="coordinates"``: x, y, then the channel one-hot of a layout)."""
 
+    task_coordinates: bool = True
+    """The task (VR) networks also see each state's coordinates (`coordinates.state_coordinates`: from the
+    layout, else recovered from the transition graph) and their sinusoids at 2 octaves besides the MDP's
+    state features, unless the features already hold them; the baseline network sees the features alone. A task's own reward — a goal — is a
+    place, which features describing the world (distances to objects, colours around a cell) cannot single
+    out: without the place a task network spreads its goal over every state whose features look alike.
+    Features that are the coordinates (a grid's x, y) are left as they are."""
+
     tabular_inputs: TabularInputs = "coordinates"
     """What the networks see of each state when the MDP has no state features. ``coordinates``: the state's
     position, from the MDP's layout when it has one (x, y in [0, 1], plus a one-hot of its channel), else

@@ -137,11 +137,12 @@ class _Problem:
         if features is None and config.tabular_inputs == "coordinates":
             features = state_coordinates([t.mdp for t in tasks], seed=config.seed)
         base_columns = _baseline_columns(config, features)
-        self.features = None if features is None else _encode(features, config)
+        task_features = _with_coordinates(features, [t.mdp for t in tasks], config)
+        self.features = None if task_features is None else _encode(task_features, config)
         self.base_features = (
             self.features
-            if features is None or base_columns is None
-            else _encode(features[:, base_columns], config)
+            if features is None or (base_columns is None and task_features is features)
+            else _encode(features if base_columns is None else features[:, base_columns], config)
         )
         demos = [t.trajectories for t in tasks]
         folds = [
@@ -284,6 +285,30 @@ def sharing_blocks(mdps: Sequence[MDP], n_blocks: int, *, seed: int) -> list[np.
 def _encode(features: np.ndarray, config: FitConfig) -> torch.Tensor:
     """Network inputs from state features: the raw columns and their Fourier waves (`fourier_octaves`)."""
     return torch.from_numpy(fourier_features(np.ascontiguousarray(features), octaves=config.fourier_octaves))
+
+
+COORDINATE_OCTAVES = 2
+"""Octaves of the sinusoids of the coordinates the task networks see (`networks.fourier_features`): a goal is
+a bump at one place, which a ReLU MLP builds slowly from raw coordinates (spectral bias) and directly from
+waves down to a quarter of the grid. Chosen on the multi-task objectworld worlds of `benchmarks/FAMILIES.md`
+(world 0, 10 demonstrations, Pearson / EVD÷random: raw 0.44 / 0.32, 2 octaves 0.61 / 0.12, 3 octaves
+0.67 / 0.10; with 3 demonstrations that wander (goal bonus 3), worlds 0 and 2, Pearson 0.48 and 0.31 with 3
+octaves against 0.54 and 0.48 with 2)."""
+
+
+def _with_coordinates(
+    features: np.ndarray | None, mdps: Sequence[MDP], config: FitConfig
+) -> np.ndarray | None:
+    """The task networks' inputs: the features, followed by the states' coordinates and their waves at
+    COORDINATE_OCTAVES octaves when `FitConfig.task_coordinates` asks for them and no feature column already
+    is one of them."""
+    if features is None or mdps[0].features is None or not config.task_coordinates:
+        return features  # no features, or coordinates standing in for them
+    coordinates = state_coordinates(mdps, seed=config.seed)
+    if coordinates is None or all(any(np.array_equal(c, f) for f in features.T) for c in coordinates.T):
+        return features
+    waves = fourier_features(coordinates, octaves=COORDINATE_OCTAVES)
+    return np.concatenate([features, waves], axis=1).astype(np.float32)
 
 
 def _baseline_columns(config: FitConfig, features: np.ndarray | None) -> list[int] | None:

@@ -87,7 +87,7 @@ def make_tasks(
             p, reward, gamma=world.mdp.gamma, backup="soft", confidence=rationality
         ).policy
         trajectories = [
-            _rollout(world.mdp, p, policy, goal=int(goal), max_length=cap, rng=rng) for _ in range(n_demos)
+            rollout(world.mdp, p, policy, goal=int(goal), max_length=cap, rng=rng) for _ in range(n_demos)
         ]
         tasks.append(
             SimTask(
@@ -100,22 +100,26 @@ def make_tasks(
     return tasks
 
 
-def _rollout(
+def rollout(
     mdp: MDP,
     p: sp.csr_matrix,
     policy: np.ndarray,
     *,
-    goal: int,
+    goal: int | None,
     max_length: int,
     rng: np.random.Generator,
 ) -> Trajectory:
-    """Sample one trajectory (with its final state) from a random non-goal start until the goal or the cap.
+    """Sample one trajectory (with its final state) of ``policy`` from a uniformly random start: with a
+    ``goal``, a non-goal start, until the goal or ``max_length`` steps; without, ``max_length`` steps.
 
     ``p`` is the MDP's `transition_matrix`: a stochastic MDP's next state is drawn from row s·A + a (a
     deterministic one's is looked up, drawing nothing, so its demonstrations do not depend on ``p``).
     """
-    state = int(rng.integers(mdp.n_states - 1))
-    state += state >= goal
+    if goal is None:
+        state = int(rng.integers(mdp.n_states))
+    else:
+        state = int(rng.integers(mdp.n_states - 1))
+        state += state >= goal
     states, actions = [state], list[int]()
     while state != goal and len(actions) < max_length:
         action = int(rng.choice(mdp.n_actions, p=policy[state]))

@@ -1,0 +1,344 @@
+"""The published gridworld benchmark families (objectworld, binaryworld, their multi-task forms) × configs.
+
+Every fit is scored against the true rewards by Pearson (goal cell excluded), EVD (true value lost, from
+uniform starts, by the learned reward's optimal policy; `metrics.expected_value_difference`) as a fraction
+of a uniform random policy's loss, and EPIC with dynamics. Fits are cached in ``families_results.json``
+beside this script (keyed by the engine revision and the full config), so a rerun only fits what is
+missing; the table is written to ``FAMILIES.md``. Usage::
+
+    .venv/bin/python -m benchmarks.families                     # the table: default / none / maxent
+    .venv/bin/python -m benchmarks.families --variants default visited w3 --families multi-objectworld
+    .venv/bin/python -m benchmarks.families --table             # only rewrite FAMILIES.md from the cache
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy
+import torch
+
+from metairl_engine import FitConfig
+from metairl_engine.distances import distances
+from metairl_engine.fit import fit
+from metairl_engine.metrics import expected_value_difference, pearson
+from metairl_engine.planning import policy_evaluation, transition_matrix, value_iteration
+from metairl_engine.results import TaskData
+from metairl_engine.sim.benchmark import RewardWorld, goal_tasks, single_task
+from metairl_engine.sim.binaryworld import make_binaryworld
+from metairl_engine.sim.objectworld import make_objectworld
+from metairl_engine.sim.terrain import SimTask
+
+HERE = Path(__file__).resolve().parent
+CACHE = HERE / "families_results.json"
+PAGE = HERE / "FAMILIES.md"
+COMMAND = ".venv/bin/python -m benchmarks.families"
+
+REVISION = "fam4"
+"""Engine revision of the cached rows: change it whenever the engine changes what a fit returns."""
+
+EARLIER = "fam1"
+"""The engine before `FitConfig.task_coordinates` (task networks saw the MDP's features alone): its rows
+stay in the cache and on the page, for before/after."""
+
+N_TASKS = 8
+GOAL_BONUS = 10.0
+"""Goal bonus of the multi-task forms: at γ = 0.9 a smaller one loses to a nearby +1 region (with +3 only
+15 % of the demonstrations reach their goal within 3·size steps)."""
+
+
+@dataclass(frozen=True)
+class Family:
+    """A benchmark family: its world ``index`` → world, single- or multi-task, the demonstration counts."""
+
+    world: Callable[[int], RewardWorld]
+    multi: bool
+    demos: tuple[int, ...]
+    frozen: bool = False
+    goal_bonus: float = GOAL_BONUS
+
+
+FROZEN_SEED = 10_000
+"""World seeds of the frozen family start here: seeds never used while choosing a default."""
+
+FAMILIES: dict[str, Family] = {
+    "objectworld": Family(lambda i: make_objectworld(seed=i)[0], multi=False, demos=(16, 64)),
+    "binaryworld": Family(lambda i: make_binaryworld(seed=100 + i), multi=False, demos=(16, 64)),
+    "multi-objectworld": Family(lambda i: make_objectworld(seed=200 + i)[0], multi=True, demos=(3, 10)),
+    "multi-binaryworld": Family(lambda i: make_binaryworld(seed=300 + i), multi=True, demos=(3, 10)),
+    # The goal bonus of the terrain (+3): most demonstrations stay near +1 regions instead of reaching the goal.
+    "multi-objectworld-bonus3": Family(
+        lambda i: make_objectworld(seed=200 + i)[0], multi=True, demos=(3, 10), goal_bonus=3.0
+    ),
+    # Frozen: discrete features, calmer wind, its own seeds; only reported, never used to choose anything.
+    "multi-objectworld-discrete (frozen)": Family(
+        lambda i: make_objectworld(seed=FROZEN_SEED + i, discrete=True, wind=0.1)[0],
+        multi=True,
+        demos=(3, 10),
+        frozen=True,
+    ),
+}
+
+VARIANTS: dict[str, dict[str, Any]] = {
+    "default": {},
+    "none": {"sharing": "none"},
+    "maxent": {"method": "maxent"},
+    # diagnostics of the sharing (what the default's sharing does on these families)
+    "visited": {"sharing_states": "visited"},
+    "w0.3": {"sharing_weight": 0.3},
+    "w3": {"sharing_weight": 3.0},
+    "ens1": {"ensemble": 1},
+    "none-ens1": {"sharing": "none", "ensemble": 1},
+    "no-holdout": {"holdout_fraction": 0.0},
+    "narrow": {"hidden": (32, 16)},
+    "l2": {"sharing": "l2"},
+    "patience0": {"patience": 0},
+    "patience500": {"patience": 500},
+    "base4": {"baseline_features": (0, 1, 2, 3)},
+}
+"""Named FitConfig overrides; ``default`` is whatever FitConfig() is at the time of the run."""
+
+TABLE_VARIANTS = ("default", "none", "maxent")
+
+
+def config_of(variant: str) -> FitConfig:
+    """Today's defaults plus the variant's overrides."""
+    return replace(FitConfig(), **VARIANTS[variant])
+
+
+def key_of(variant: str) -> str:
+    """Cache key: engine revision and full config."""
+    return f"{REVISION}:" + json.dumps(config_of(variant).to_dict(), sort_keys=True)
+
+
+def tasks_of(family: Family, world: RewardWorld, index: int, n_demos: int) -> list[SimTask]:
+    """The family's tasks on ``world``: 8 goal tasks, or the world's reward as one task."""
+    if family.multi:
+        return goal_tasks(
+            world, n_tasks=N_TASKS, n_demos=n_demos, seed=7_000 + index, goal_bonus=family.goal_bonus
+        )
+    return [single_task(world, n_demos=n_demos, seed=7_000 + index)]
+
+
+def random_policy_loss(world: RewardWorld, reward: np.ndarray) -> float:
+    """V*(uniform start) − V^{uniform random policy}: the EVD of a policy that knows nothing."""
+    mdp = world.mdp
+    p = transition_matrix(mdp)
+    best = value_iteration(p, reward, gamma=mdp.gamma, backup="max").value
+    uniform = np.full((mdp.n_states, mdp.n_actions), 1.0 / mdp.n_actions)
+    return float(np.mean(best - policy_evaluation(p, reward, uniform, gamma=mdp.gamma)))
+
+
+def run_one(world: RewardWorld, sims: list[SimTask], config: FitConfig) -> dict[str, Any]:
+    """Fit and score: per-task means of Pearson (goal excluded), EVD, EVD / random, EPIC."""
+    mdp = world.mdp
+    started = time.process_time()
+    result = fit([TaskData(mdp, s.trajectories, s.name) for s in sims], config)
+    cpu = time.process_time() - started
+    p = transition_matrix(mdp)
+    scores: dict[str, list[float]] = {"pearson": [], "evd": [], "evd_random": [], "epic": []}
+    for i, s in enumerate(sims):
+        learned = result.rewards[i].astype(np.float64)
+        scores["pearson"].append(pearson(learned, s.true_reward, mask=np.arange(mdp.n_states) != s.goal))
+        evd = expected_value_difference(mdp, s.true_reward, learned)
+        scores["evd"].append(evd)
+        scores["evd_random"].append(evd / random_policy_loss(world, s.true_reward))
+        scores["epic"].append(
+            distances(learned, s.true_reward, transitions=p, gamma=mdp.gamma, n_actions=mdp.n_actions).epic
+        )
+    kept = result.history[result.best_step - 1].heldout_nll if result.history else None
+    return {
+        **{k: float(np.mean(v)) for k, v in scores.items()},
+        "baseline_pearson": pearson(result.baseline, world.reward),
+        "steps": len(result.history),
+        "kept_step": result.best_step,
+        "heldout_nll": None if kept is None else float(kept),
+        "cpu_seconds": cpu,
+    }
+
+
+def header() -> str:
+    """Command, machine and versions for the page's top."""
+    return (
+        f"Command: `{COMMAND}` (fits only what `benchmarks/families_results.json` lacks, then writes this "
+        f"page).  \nMachine: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
+        f"torch threads {torch.get_num_threads()}; Python {platform.python_version()}, torch "
+        f"{torch.__version__}, numpy {np.__version__}, scipy {scipy.__version__}. Engine revision "
+        f"`{REVISION}`."
+    )
+
+
+def _selected(row: dict[str, Any], variant: str, revision: str) -> bool:
+    """Is ``row`` a fit of ``variant`` on ``revision`` (today's: exactly today's config)?"""
+    if revision == REVISION:
+        return bool(row["key"] == key_of(variant))
+    return bool(row["variant"] == variant and row["key"].startswith(revision + ":"))
+
+
+def table(rows: list[dict[str, Any]], variants: list[str], worlds: int, revision: str = REVISION) -> str:
+    """Markdown: family × demos rows, per variant Pearson, EVD / random and EPIC (mean over worlds)."""
+    head = (
+        " | ".join(f"{v} Pearson" for v in variants) + " | " + " | ".join(f"{v} EVD/rand" for v in variants)
+    )
+    lines = [f"| family | demos | {head} | {' | '.join(f'{v} EPIC' for v in variants)} | worlds |"]
+    lines.append("| --- " * (3 + 3 * len(variants)) + "|")
+    for name, family in FAMILIES.items():
+        for demos in family.demos:
+            cells: dict[str, list[str]] = {"pearson": [], "evd_random": [], "epic": []}
+            counts = set()
+            for v in variants:
+                sel = [
+                    r
+                    for r in rows
+                    if r["family"] == name
+                    and r["demos"] == demos
+                    and _selected(r, v, revision)
+                    and r["world"] < worlds
+                ]
+                counts.add(len(sel))
+                for k in cells:
+                    cells[k].append(f"{np.mean([r[k] for r in sel]):.3f}" if sel else "—")
+            lines.append(
+                f"| {name} | {demos} | {' | '.join(cells['pearson'])} | {' | '.join(cells['evd_random'])} | "
+                f"{' | '.join(cells['epic'])} | {'/'.join(str(c) for c in sorted(counts))} |"
+            )
+    return "\n".join(lines)
+
+
+def main() -> None:
+    """Fit what the cache lacks, print the table; with the table's variants, rewrite FAMILIES.md."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--variants", nargs="*", default=list(TABLE_VARIANTS), choices=list(VARIANTS))
+    parser.add_argument("--families", nargs="*", default=list(FAMILIES), choices=list(FAMILIES))
+    parser.add_argument("--demos", nargs="*", type=int, default=None, help="only these demonstration counts")
+    parser.add_argument("--worlds", type=int, default=3)
+    parser.add_argument("--table", action="store_true", help="only print the table from the cache")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    rows: list[dict[str, Any]] = json.loads(CACHE.read_text()) if CACHE.exists() else []
+    done = {(r["family"], r["demos"], r["key"], r["world"]) for r in rows}
+    for name in args.families:
+        family = FAMILIES[name]
+        for w in range(args.worlds):
+            world = family.world(w)
+            for demos in family.demos:
+                if args.demos is not None and demos not in args.demos:
+                    continue
+                todo = [v for v in args.variants if (name, demos, key_of(v), w) not in done]
+                if args.table or not todo:
+                    continue
+                sims = tasks_of(family, world, w, demos)
+                for v in todo:
+                    out = run_one(world, sims, config_of(v))
+                    rows.append(
+                        {"family": name, "demos": demos, "variant": v, "key": key_of(v), "world": w, **out}
+                    )
+                    CACHE.write_text(json.dumps(rows, indent=0))
+                    print(
+                        name,
+                        demos,
+                        v,
+                        w,
+                        {k: round(out[k], 3) for k in ("pearson", "evd_random", "cpu_seconds")},
+                        flush=True,
+                    )
+    print(table(rows, args.variants, args.worlds))
+    if list(args.variants) == list(TABLE_VARIANTS):
+        PAGE.write_text(page(rows, args.worlds))
+
+
+DIAGNOSED = ("multi-objectworld", 10)
+"""Where the sharing was measured knob by knob (family, demonstrations per task), on the engine `EARLIER`."""
+
+
+def diagnostics(rows: list[dict[str, Any]]) -> str:
+    """Markdown: each diagnostic variant's Pearson, EVD / random, baseline Pearson and steps on DIAGNOSED."""
+    family, demos = DIAGNOSED
+    lines = [
+        "| variant | overrides | Pearson | EVD/rand | baseline vs world reward | steps (kept) | worlds |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for v, overrides in VARIANTS.items():
+        sel = [r for r in rows if r["family"] == family and r["demos"] == demos and _selected(r, v, EARLIER)]
+        sel = [r for r in sel if r["world"] < 2]
+        if not sel or v == "maxent":
+            continue
+        mean = {
+            k: np.mean([r[k] for r in sel])
+            for k in ("pearson", "evd_random", "baseline_pearson", "steps", "kept_step")
+        }
+        lines.append(
+            f"| {v} | `{json.dumps(overrides)}` | {mean['pearson']:.3f} | {mean['evd_random']:.3f} | "
+            f"{mean['baseline_pearson']:.3f} | {mean['steps']:.0f} ({mean['kept_step']:.0f}) | {len(sel)} |"
+        )
+    return "\n".join(lines)
+
+
+FINDINGS = """### What the sharing did, and what was wrong (measured on the engine before, revision `fam1`)
+
+- The sharing pooled on every multi-task family here: default ≥ none at every demonstration count (the
+  "Before" table). The cap reported for a hidden objectworld instance (default 0.41 against none 0.54 at 10
+  demonstrations) did not reproduce on these generators, and none of the knobs in the table above moves the
+  correlation by more than the world-to-world spread: sharing on visited states only is worse (0.367 against
+  0.422 on world 0); weight 0.3 or 3 changes nothing (0.426, 0.433); a narrower network (32, 16) for the
+  baseline and the tasks is no better; one member instead of the ensemble's four, 0.428; every default fit
+  stopped by patience with its last step kept (230–460 steps), yet running to 1000 steps without a hold-out
+  (0.417 against 0.400 on worlds 0–1) or with patience 0 (0.409 on world 0) gains nothing; a goal bonus of 3
+  instead of 10 (demonstrations wander among +1 regions, `multi-objectworld-bonus3`) pools more, not less.
+  Stochastic transitions were not varied on their own (the frozen family has wind 0.1, the others 0.3).
+- What was wrong shows in the value lost, not in the correlation: the tabular `maxent` solver, correlating
+  0.32, lost a third of the value the default lost (EVD/random 0.166 against 0.487 at 10 demonstrations;
+  binaryworld 0.200 against 0.597). Objectworld's and binaryworld's features — distances to the nearest
+  objects, colours around a cell — cannot single out a goal cell: each task network spread its goal's bonus
+  over every cell whose features look alike, its optimal policy headed there, and the baseline, seeing the
+  same features, took part of that spread in (baseline against the world reward 0.35–0.76).
+- The change (`FitConfig.task_coordinates`, docs/method.md "Task coordinates"): the task networks also see
+  each state's coordinates and their sinusoids at 2 octaves; the baseline sees the features alone. Raw
+  coordinates alone (revision `fam2`, not kept) took multi-task objectworld at 10 demonstrations from
+  EVD/random 0.487 to 0.344 and Pearson 0.480 to 0.508; the sinusoids do the rest (today's table). Grids
+  whose features are their coordinates (terrain, motion) are untouched: their fits are bit-identical.
+"""
+"""What the measurements say (written by hand from the tables below; keep it in step with them)."""
+
+
+def page(rows: list[dict[str, Any]], worlds: int) -> str:
+    """FAMILIES.md: header, protocol, today's table, the earlier engine's, the sharing diagnostics."""
+    frozen = [n for n, f in FAMILIES.items() if f.frozen]
+    family, demos = DIAGNOSED
+    return (
+        "# Benchmark families: objectworld and binaryworld, single- and multi-task\n\n"
+        + header()
+        + "\n\n"
+        + f"Mean over worlds 0 … {worlds - 1} of each family. Multi-task: {N_TASKS} goal tasks on one world, "
+        f"task reward = world reward + {GOAL_BONUS:g} at its goal (the `-bonus3` row: + 3), demonstrations from "
+        "random non-goal starts to the goal (at most 3·size steps); single-task: demonstrations of 8 steps "
+        "from uniform starts. Demonstrator: softmax(2·Q_soft) of the task's true reward. 32×32 grids, 5 "
+        "actions, wind 0.3 (frozen: 0.1), γ 0.9, objectworld with continuous features (frozen: discrete). "
+        "Pearson: learned vs true task reward, goal cell excluded; EVD/rand: true value lost by the learned "
+        "reward's optimal policy from uniform starts, as a fraction of a uniform random policy's loss (0 "
+        "perfect, 1 no better than random); EPIC: with the MDP's dynamics, 0 perfect.\n\n"
+        + f"Never used for any choice (frozen): {', '.join(frozen)}: worlds of seeds ≥ {FROZEN_SEED}, discrete "
+        "features, wind 0.1.\n\n"
+        + f"## Today's engine (revision `{REVISION}`)\n\n"
+        + table(rows, list(TABLE_VARIANTS), worlds)
+        + f"\n\n## Before: task networks saw the MDP's features alone (revision `{EARLIER}`)\n\n"
+        + table(rows, list(TABLE_VARIANTS), worlds, revision=EARLIER)
+        + f"\n\n## The sharing, knob by knob ({family}, {demos} demonstrations per task, revision `{EARLIER}`)\n\n"
+        + diagnostics(rows)
+        + "\n\n"
+        + FINDINGS
+        + "\n"
+    )
+
+
+if __name__ == "__main__":
+    main()
