@@ -15,7 +15,7 @@ from dataclasses import fields
 from functools import cache
 from typing import Annotated, Any, get_args, get_origin, get_type_hints
 
-from pydantic import BaseModel, ConfigDict, Field, StrictInt, create_model
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictInt, create_model
 
 from metairl_engine.config import FitConfig
 
@@ -39,8 +39,11 @@ def attribute_docstrings(cls: type) -> dict[str, str]:
 
 
 def http_type(hint: Any) -> Any:
-    """The pydantic type of a `FitConfig` annotation: integers and numbers strict (``true`` is no number, ``"10"``
-    no integer, 10.5 no integer), floats finite, tuples as JSON arrays of strict integers."""
+    """The pydantic type of a `FitConfig` annotation: booleans, integers and numbers strict (``"yes"`` is no
+    boolean, ``true`` no number, ``"10"`` or 10.5 no integer), floats finite, tuples as JSON arrays of strict
+    integers."""
+    if hint is bool:
+        return StrictBool
     if hint is int:
         return StrictInt
     if hint is float:
