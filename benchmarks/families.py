@@ -3,7 +3,7 @@
 Every fit is scored against the true rewards by Pearson (goal cell excluded), EVD (true value lost, from
 uniform starts, by the learned reward's optimal policy; `metrics.expected_value_difference`) as a fraction
 of a uniform random policy's loss, and EPIC with dynamics. Fits are cached in ``families_results.json``
-beside this script (keyed by the engine revision and the full config), so a rerun only fits what is
+beside this script (keyed by the engine and the full config), so a rerun only fits what is
 missing; the table is written to ``FAMILIES.md``. Usage::
 
     .venv/bin/python -m benchmarks.families                     # the table: default / none / maxent
@@ -43,10 +43,10 @@ CACHE = HERE / "families_results.json"
 PAGE = HERE / "FAMILIES.md"
 COMMAND = ".venv/bin/python -m benchmarks.families"
 
-REVISION = "fam4"
-"""Engine revision of the cached rows: change it whenever the engine changes what a fit returns."""
+ENGINE = "coordinates-2-octaves"
+"""Engine of the cached rows: change it whenever the engine changes what a fit returns."""
 
-EARLIER = "fam1"
+EARLIER = "features-only"
 """The engine before `FitConfig.task_coordinates` (task networks saw the MDP's features alone): its rows
 stay in the cache and on the page, for before/after."""
 
@@ -116,8 +116,8 @@ def config_of(variant: str) -> FitConfig:
 
 
 def key_of(variant: str) -> str:
-    """Cache key: engine revision and full config."""
-    return f"{REVISION}:" + json.dumps(config_of(variant).to_dict(), sort_keys=True)
+    """Cache key: engine and full config."""
+    return f"{ENGINE}:" + json.dumps(config_of(variant).to_dict(), sort_keys=True)
 
 
 def tasks_of(family: Family, world: RewardWorld, index: int, n_demos: int) -> list[SimTask]:
@@ -172,19 +172,19 @@ def header() -> str:
         f"Command: `{COMMAND}` (fits only what `benchmarks/families_results.json` lacks, then writes this "
         f"page).  \nMachine: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
         f"torch threads {torch.get_num_threads()}; Python {platform.python_version()}, torch "
-        f"{torch.__version__}, numpy {np.__version__}, scipy {scipy.__version__}. Engine revision "
-        f"`{REVISION}`."
+        f"{torch.__version__}, numpy {np.__version__}, scipy {scipy.__version__}. Engine "
+        f"`{ENGINE}`."
     )
 
 
-def _selected(row: dict[str, Any], variant: str, revision: str) -> bool:
-    """Is ``row`` a fit of ``variant`` on ``revision`` (today's: exactly today's config)?"""
-    if revision == REVISION:
+def _selected(row: dict[str, Any], variant: str, engine: str) -> bool:
+    """Is ``row`` a fit of ``variant`` on ``engine`` (today's: exactly today's config)?"""
+    if engine == ENGINE:
         return bool(row["key"] == key_of(variant))
-    return bool(row["variant"] == variant and row["key"].startswith(revision + ":"))
+    return bool(row["variant"] == variant and row["key"].startswith(engine + ":"))
 
 
-def table(rows: list[dict[str, Any]], variants: list[str], worlds: int, revision: str = REVISION) -> str:
+def table(rows: list[dict[str, Any]], variants: list[str], worlds: int, engine: str = ENGINE) -> str:
     """Markdown: family × demos rows, per variant Pearson, EVD / random and EPIC (mean over worlds)."""
     head = (
         " | ".join(f"{v} Pearson" for v in variants) + " | " + " | ".join(f"{v} EVD/rand" for v in variants)
@@ -201,7 +201,7 @@ def table(rows: list[dict[str, Any]], variants: list[str], worlds: int, revision
                     for r in rows
                     if r["family"] == name
                     and r["demos"] == demos
-                    and _selected(r, v, revision)
+                    and _selected(r, v, engine)
                     and r["world"] < worlds
                 ]
                 counts.add(len(sel))
@@ -283,7 +283,7 @@ def diagnostics(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-FINDINGS = """### What the sharing did, and what was wrong (measured on the engine before, revision `fam1`)
+FINDINGS = """### What the sharing did, and what was wrong (measured on the engine before, engine `features-only`)
 
 - The sharing pooled on every multi-task family here: default ≥ none at every demonstration count (the
   "Before" table). The cap reported for a hidden objectworld instance (default 0.41 against none 0.54 at 10
@@ -303,7 +303,7 @@ FINDINGS = """### What the sharing did, and what was wrong (measured on the engi
   same features, took part of that spread in (baseline against the world reward 0.35–0.76).
 - The change (`FitConfig.task_coordinates`, docs/method.md "Task coordinates"): the task networks also see
   each state's coordinates and their sinusoids at 2 octaves; the baseline sees the features alone. Raw
-  coordinates alone (revision `fam2`, not kept) took multi-task objectworld at 10 demonstrations from
+  coordinates alone (engine `coordinates-raw`, not kept) took multi-task objectworld at 10 demonstrations from
   EVD/random 0.487 to 0.344 and Pearson 0.480 to 0.508; the sinusoids do the rest (today's table). Grids
   whose features are their coordinates (terrain, motion) are untouched: their fits are bit-identical.
 """
@@ -328,11 +328,11 @@ def page(rows: list[dict[str, Any]], worlds: int) -> str:
         "perfect, 1 no better than random); EPIC: with the MDP's dynamics, 0 perfect.\n\n"
         + f"Never used for any choice (frozen): {', '.join(frozen)}: worlds of seeds ≥ {FROZEN_SEED}, discrete "
         "features, wind 0.1.\n\n"
-        + f"## Today's engine (revision `{REVISION}`)\n\n"
+        + f"## Today's engine (engine `{ENGINE}`)\n\n"
         + table(rows, list(TABLE_VARIANTS), worlds)
-        + f"\n\n## Before: task networks saw the MDP's features alone (revision `{EARLIER}`)\n\n"
-        + table(rows, list(TABLE_VARIANTS), worlds, revision=EARLIER)
-        + f"\n\n## The sharing, knob by knob ({family}, {demos} demonstrations per task, revision `{EARLIER}`)\n\n"
+        + f"\n\n## Before: task networks saw the MDP's features alone (engine `{EARLIER}`)\n\n"
+        + table(rows, list(TABLE_VARIANTS), worlds, engine=EARLIER)
+        + f"\n\n## The sharing, knob by knob ({family}, {demos} demonstrations per task, engine `{EARLIER}`)\n\n"
         + diagnostics(rows)
         + "\n\n"
         + FINDINGS
