@@ -15,7 +15,7 @@ import numpy as np
 
 from metairl_engine.mdp import MDP
 from metairl_engine.planning import transition_matrix, value_iteration
-from metairl_engine.sim.terrain import SimTask, rollout
+from metairl_engine.sim.terrain import SimTask, rollout, tasks_with_goals
 
 
 @dataclass(frozen=True)
@@ -58,21 +58,17 @@ def goal_tasks(
     """``n_tasks`` tasks on one world: task i's reward is the world's plus ``goal_bonus`` at its own random
     goal cell; its demonstrations start at a random non-goal cell and stop at the goal or after
     ``max_length`` (default 3·size) steps."""
-    rng = np.random.default_rng(seed)
-    n_states = world.mdp.n_states
-    goals = rng.choice(n_states, size=n_tasks, replace=n_tasks > n_states)
-    p = transition_matrix(world.mdp)
-    cap = 3 * world.size if max_length is None else max_length
-    tasks = []
-    for goal in goals:
-        reward = world.reward.astype(np.float64).copy()
-        reward[goal] += goal_bonus
-        policy = _policy(world.mdp, reward, rationality)
-        demos = [
-            rollout(world.mdp, p, policy, goal=int(goal), max_length=cap, rng=rng) for _ in range(n_demos)
-        ]
-        tasks.append(SimTask(f"goal {goal}", int(goal), reward.astype(np.float32), demos))
-    return tasks
+    return tasks_with_goals(
+        world.mdp,
+        world.reward,
+        size=world.size,
+        n_tasks=n_tasks,
+        n_demos=n_demos,
+        seed=seed,
+        goal_bonus=goal_bonus,
+        rationality=rationality,
+        max_length=max_length,
+    )
 
 
 def _policy(mdp: MDP, reward: np.ndarray, rationality: float) -> np.ndarray:

@@ -74,29 +74,47 @@ def make_tasks(
     The demonstrator picks actions from softmax(rationality·Q_soft) of the true reward; a trajectory
     starts at a random non-goal state and stops at the goal or after ``max_length`` (default 3·size) steps.
     """
+    return tasks_with_goals(
+        world.mdp,
+        -world.cost.astype(np.float64),
+        size=world.size,
+        n_tasks=n_tasks,
+        n_demos=n_demos,
+        seed=seed,
+        goal_bonus=goal_bonus,
+        rationality=rationality,
+        max_length=max_length,
+    )
+
+
+def tasks_with_goals(
+    mdp: MDP,
+    base_reward: np.ndarray,
+    *,
+    size: int,
+    n_tasks: int,
+    n_demos: int,
+    seed: int,
+    goal_bonus: float,
+    rationality: float,
+    max_length: int | None,
+) -> list[SimTask]:
+    """``n_tasks`` tasks on one world of ``size``×``size`` cells: task i's true reward is ``base_reward`` plus
+    ``goal_bonus`` at its own random goal, demonstrated by softmax(rationality·Q_soft) from a random non-goal
+    start to the goal or for ``max_length`` (default 3·size) steps."""
     rng = np.random.default_rng(seed)
-    n_states = world.mdp.n_states
-    goals = rng.choice(n_states, size=n_tasks, replace=n_tasks > n_states)
-    p = transition_matrix(world.mdp)
-    cap = 3 * world.size if max_length is None else max_length
+    goals = rng.choice(mdp.n_states, size=n_tasks, replace=n_tasks > mdp.n_states)
+    p = transition_matrix(mdp)
+    cap = 3 * size if max_length is None else max_length
     tasks = []
     for goal in goals:
-        reward = -world.cost.astype(np.float64)
+        reward = np.array(base_reward, dtype=np.float64)
         reward[goal] += goal_bonus
-        policy = value_iteration(
-            p, reward, gamma=world.mdp.gamma, backup="soft", confidence=rationality
-        ).policy
+        policy = value_iteration(p, reward, gamma=mdp.gamma, backup="soft", confidence=rationality).policy
         trajectories = [
-            rollout(world.mdp, p, policy, goal=int(goal), max_length=cap, rng=rng) for _ in range(n_demos)
+            rollout(mdp, p, policy, goal=int(goal), max_length=cap, rng=rng) for _ in range(n_demos)
         ]
-        tasks.append(
-            SimTask(
-                name=f"goal {goal}",
-                goal=int(goal),
-                true_reward=reward.astype(np.float32),
-                trajectories=trajectories,
-            )
-        )
+        tasks.append(SimTask(f"goal {goal}", int(goal), reward.astype(np.float32), trajectories))
     return tasks
 
 
