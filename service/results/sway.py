@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -10,15 +11,22 @@ from sqlalchemy.orm import Session
 
 from metairl_engine import InvalidInput
 from metairl_engine.motion.sway import (
+    CONFIDENCE,
+    METHODS,
+    N_RESAMPLES,
     GroupComparison,
     Interval,
     SwayMeasures,
     SwayOptions,
+    analysed_samples,
     compare_groups,
     quotient,
     sway_measures,
 )
+from service.domain.sway import Estimate, Spectra, SwayDifference, SwayGroup, SwayOut, SwaySummaryOut
+from service.files.images import sway_png
 from service.problems import Conflict, Unprocessable
+from service.results.downloads import Download
 from service.store.blobs import get_array
 from service.store.models.demonstrators import Demonstrator
 from service.store.models.recordings import Recording as RecordingRow
@@ -97,4 +105,81 @@ def sway_summary(
         unlabelled=unlabelled,
         comparison=compare_groups(groups),
         romberg=romberg,
+    )
+
+
+def sway_out(session: Session, row: RecordingRow, options: SwayOptions, *, spectra: bool) -> SwayOut:
+    """The answer of ``GET /v1/recordings/{id}/sway``: measures (non-finite as null), methods and options, and
+    with ``spectra`` the Welch spectra they come from."""
+    measures = recording_sway(session, row, options)
+    return SwayOut(
+        recording_id=row.id,
+        units=recording_units(row),
+        rate_hz=measures.rate_hz,
+        duration_s=measures.duration_s,
+        n_samples=measures.n_samples,
+        options={
+            "lowpass_hz": options.lowpass_hz,
+            "trim_start_s": options.trim_start_s,
+            "trim_end_s": options.trim_end_s,
+        },
+        descriptors={k: v if math.isfinite(v) else None for k, v in measures.descriptors().items()},
+        methods=METHODS,
+        spectra=Spectra(
+            frequencies=measures.frequencies.tolist(),
+            psd_x=measures.psd_x.tolist(),
+            psd_y=measures.psd_y.tolist(),
+        )
+        if spectra
+        else None,
+    )
+
+
+def sway_picture(session: Session, row: RecordingRow, options: SwayOptions) -> Download:
+    """The recording's analysed COP path with its 95 % prediction ellipse, as an inline PNG."""
+    measures = recording_sway(session, row, options)
+    units = recording_units(row)
+    samples = get_array(session, row.samples_blob_id).astype(np.float64)
+    _, x, y = analysed_samples(samples[:, 0], samples[:, 1], samples[:, 2], options)
+    title = f"{row.name or row.id}: area95 {measures.area95:.3g} {units or 'units'}²"
+    return Download(
+        content=sway_png(x, y, measures.ellipse_outline(), units=units, title=title),
+        media_type="image/png",
+        filename=f"{row.id}-sway.png",
+        disposition="inline",
+        etag=None,
+    )
+
+
+def sway_summary_out(
+    session: Session, demonstrator: Demonstrator, *, by: str, options: SwayOptions
+) -> SwaySummaryOut:
+    """The answer of ``GET /v1/demonstrators/{id}/sway-summary``: `sway_summary` with every interval as an
+    `Estimate`."""
+    summary = sway_summary(session, demonstrator, by=by, options=options)
+    comparison = summary.comparison
+
+    def estimates(values: dict[str, Interval]) -> dict[str, Estimate]:
+        return {name: Estimate.of(interval) for name, interval in values.items()}
+
+    return SwaySummaryOut(
+        demonstrator_id=demonstrator.id,
+        by=by,
+        units=summary.units,
+        groups=[
+            SwayGroup(
+                label=label,
+                n=comparison.n[label],
+                recording_ids=summary.recording_ids[label],
+                measures=estimates(comparison.means[label]),
+            )
+            for label in comparison.means
+        ],
+        differences=[
+            SwayDifference(a=a, b=b, measures=estimates(values))
+            for (a, b), values in comparison.differences.items()
+        ],
+        romberg=None if summary.romberg is None else estimates(summary.romberg),
+        unlabelled=summary.unlabelled,
+        method=f"{CONFIDENCE:.0%} percentile bootstrap over trials, {N_RESAMPLES} resamples, seeded",
     )

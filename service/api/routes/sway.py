@@ -4,23 +4,19 @@ routes: FastAPI runs them (spectra, bootstrap, figure) in its thread pool."""
 
 from __future__ import annotations
 
-import math
 from typing import Annotated, Literal
 
 from fastapi import APIRouter, Query, Response
 
-from metairl_engine.motion.sway import CONFIDENCE, METHODS, N_RESAMPLES, SwayOptions, analysed_samples
+from metairl_engine.motion.sway import SwayOptions
 from service.api.auth import LabDep
 from service.api.deps import SessionDep
 from service.api.openapi import PROBLEM_RESPONSES
 from service.api.responses import file_response
-from service.domain.sway import Estimate, Spectra, SwayDifference, SwayGroup, SwayOut, SwaySummaryOut
-from service.files.images import sway_png
+from service.domain.sway import SwayOut, SwaySummaryOut
 from service.problems import Unprocessable
-from service.results.downloads import Download
-from service.results.sway import recording_sway, recording_units, sway_summary
+from service.results.sway import sway_out, sway_picture, sway_summary_out
 from service.store import recordings
-from service.store.blobs import get_array
 from service.store.demonstrators import get_demonstrator
 
 router = APIRouter(tags=["motion"], responses=PROBLEM_RESPONSES)
@@ -63,38 +59,9 @@ def recording_sway_route(
     """Measures and methods, or the picture."""
     row = recordings.get_recording(session, recording_id, lab_id=lab.id)
     options = SwayOptions(lowpass_hz=lowpass_hz, trim_start_s=trim_start_s, trim_end_s=trim_end_s)
-    measures = recording_sway(session, row, options)
-    units = recording_units(row)
     if format == "png":
-        samples = get_array(session, row.samples_blob_id).astype("float64")
-        _, x, y = analysed_samples(samples[:, 0], samples[:, 1], samples[:, 2], options)
-        title = f"{row.name or row.id}: area95 {measures.area95:.3g} {units or 'units'}²"
-        return file_response(
-            Download(
-                content=sway_png(x, y, measures.ellipse_outline(), units=units, title=title),
-                media_type="image/png",
-                filename=f"{row.id}-sway.png",
-                disposition="inline",
-                etag=None,
-            )
-        )
-    return SwayOut(
-        recording_id=row.id,
-        units=units,
-        rate_hz=measures.rate_hz,
-        duration_s=measures.duration_s,
-        n_samples=measures.n_samples,
-        options={"lowpass_hz": lowpass_hz, "trim_start_s": trim_start_s, "trim_end_s": trim_end_s},
-        descriptors={k: v if math.isfinite(v) else None for k, v in measures.descriptors().items()},
-        methods=METHODS,
-        spectra=Spectra(
-            frequencies=measures.frequencies.tolist(),
-            psd_x=measures.psd_x.tolist(),
-            psd_y=measures.psd_y.tolist(),
-        )
-        if spectra
-        else None,
-    )
+        return file_response(sway_picture(session, row, options))
+    return sway_out(session, row, options, spectra=spectra)
 
 
 @router.get(
@@ -130,30 +97,4 @@ def demonstrator_sway_summary(
             errors=[{"pointer": "", "parameter": "by", "message": "query parameter by is required"}],
         )
     options = SwayOptions(lowpass_hz=lowpass_hz, trim_start_s=trim_start_s, trim_end_s=trim_end_s)
-    summary = sway_summary(session, demonstrator, by=by, options=options)
-    comparison = summary.comparison
-
-    def estimates(values: dict) -> dict[str, Estimate]:
-        return {name: Estimate.of(interval) for name, interval in values.items()}
-
-    return SwaySummaryOut(
-        demonstrator_id=demonstrator.id,
-        by=by,
-        units=summary.units,
-        groups=[
-            SwayGroup(
-                label=label,
-                n=comparison.n[label],
-                recording_ids=summary.recording_ids[label],
-                measures=estimates(comparison.means[label]),
-            )
-            for label in comparison.means
-        ],
-        differences=[
-            SwayDifference(a=a, b=b, measures=estimates(values))
-            for (a, b), values in comparison.differences.items()
-        ],
-        romberg=None if summary.romberg is None else estimates(summary.romberg),
-        unlabelled=summary.unlabelled,
-        method=f"{CONFIDENCE:.0%} percentile bootstrap over trials, {N_RESAMPLES} resamples, seeded",
-    )
+    return sway_summary_out(session, demonstrator, by=by, options=options)
