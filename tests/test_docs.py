@@ -12,12 +12,14 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import re
 import secrets
 import shlex
 import subprocess
+import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +33,7 @@ from fastapi.testclient import TestClient
 from metairl_cli.keys import create_key
 from service.api.app import create_app
 from service.settings import Settings
+from tests.served import Served, metairl_serve
 
 REPO = Path(__file__).resolve().parents[1]
 EXECUTED = ("README.md", "docs/api.md", "docs/client.md")
@@ -234,7 +237,17 @@ def curl_request(argv: list[str]) -> tuple[str, str]:
         elif arg in BODY_FLAGS:
             body = True
             next(args)
-        elif arg in {"-H", "--header", "-o", "--output", "-w"}:
+        elif arg in {
+            "-H",
+            "--header",
+            "-o",
+            "--output",
+            "-w",
+            "-D",
+            "--dump-header",
+            "--etag-save",
+            "--etag-compare",
+        }:
             next(args)
         elif not arg.startswith("-"):
             url = arg
@@ -377,26 +390,221 @@ def test_every_job_config_field_is_in_the_api_guide_with_its_default() -> None:
     assert rows == FitConfig().to_dict(), "docs/api.md's config table differs from FitConfig's defaults"
 
 
-# ---------------------------------------------------------------- the README's curl walk-through, for real
+# ---------------------------------------------------------------- shell blocks, run against metairl serve
+
+NO_RUN = "no-run"
+"""Info-string tag of a shell block the test does not run (only the commands of `NOT_RUN` may be in one)."""
+NOT_RUN: dict[tuple[str, ...], str] = {
+    (
+        "bash",
+        "scripts/serve.sh",
+    ): "starts the service: the test runs the blocks against its own `metairl serve`",
+    ("bash", "scripts/test.sh"): "the whole test suite",
+    ("pip", "install"): "installs into the reader's environment",
+    (
+        ".venv/bin/metairl",
+        "demo",
+    ): "18 to 250 jobs; tests/test_demo.py runs `--quick` against `metairl serve`",
+    ("python", "-m", "benchmarks.reliability"): "a benchmark that starts its own service, about 35 s",
+    (".venv/bin/python", "docs/examples/motion_tutorial.py", "run"): (
+        "two fits of minutes; tests/test_motion_tutorial.py runs the script end to end on a 12×12 grid"
+    ),
+}
+"""The only kinds of command a ``no-run`` block may hold (a prefix of its words), and why each is not run."""
+SHELL_PAGES = ("README.md", *sorted(f"docs/{page.name}" for page in (REPO / "docs").glob("*.md")))
+"""Every page whose ``bash``/``sh`` blocks are run (README.md and docs/*.md)."""
+HARNESS = r"""docs_block=-1
+curl() {  # the real curl; also writes "<block> <HTTP status of its last answer>" to $DOCS_CURL_LOG
+  local headers rc=0
+  headers=$(mktemp)
+  command curl -D "$headers" "$@" || rc=$?
+  printf '%s %s\n' "$docs_block" "$(tr -d '\r' < "$headers" | awk '/^HTTP\// {code = $2} END {print code}')" \
+    >> "$DOCS_CURL_LOG"
+  rm -f "$headers"
+  return "$rc"
+}
+trap 'echo "docs-failed $docs_block $LINENO" >&2' ERR
+"""
+"""Prepended to a page's blocks: logs each answer's status per block, and says where the script stopped."""
+NAMED_STATUS = re.compile(r"#\s*([1-5]\d\d)\b")
+"""A comment that says what a request answers: ``# 422``, ``# 204 once unused``."""
+MAGIC = {".png": b"\x89PNG", ".npy": b"\x93NUMPY", ".npz": b"PK"}
+"""First bytes of the files the blocks save, by suffix."""
+
+
+def shell_blocks(path: str) -> list[Block]:
+    """A page's ``bash`` and ``sh`` blocks, in page order."""
+    return sorted(blocks(path, "bash") + blocks(path, "sh"), key=lambda block: block.line)
+
+
+def runnable(path: str) -> list[Block]:
+    """The shell blocks of a page that the test runs."""
+    return [block for block in shell_blocks(path) if NO_RUN not in block.tags]
+
+
+@dataclass(frozen=True)
+class ShellRun:
+    """A page's blocks run as one script: exit code, output, each request's (block index, status), folder."""
+
+    returncode: int
+    stdout: str
+    stderr: str
+    answers: list[tuple[int, str]]
+    folder: Path
+
+
+def run_shell_blocks(
+    page: list[Block], served: Served, folder: Path, *, env: dict[str, str], timeout_s: float = 300
+) -> ShellRun:
+    """Run blocks in order as one ``bash -euo pipefail`` script in ``folder`` (as a reader pastes them into one
+    shell) against ``served``: ``URL`` and ``METAIRL_API_KEY`` set, the Python environment's bin first on PATH."""
+    script = HARNESS + "".join(f"docs_block={i}\n{block.code}\n" for i, block in enumerate(page))
+    (folder / "docs.sh").write_text(script, encoding="utf-8")
+    log = folder / "curl.log"
+    log.write_text("")
+    done = subprocess.run(
+        ["bash", "-euo", "pipefail", "docs.sh"],
+        cwd=folder,
+        env=env
+        | {
+            "URL": served.url,
+            "METAIRL_API_KEY": served.key,
+            "DOCS_CURL_LOG": str(log),
+            "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}",
+        },
+        capture_output=True,
+        text=True,
+        timeout=timeout_s,
+    )
+    answers = [
+        (int(block), status)
+        for block, _, status in (line.partition(" ") for line in log.read_text().splitlines())
+    ]
+    return ShellRun(done.returncode, done.stdout, done.stderr, answers, folder)
+
+
+def shell_failures(page: list[Block], run: ShellRun) -> list[str]:
+    """What went wrong, each naming its block: the block the script stopped in (and the page line near where),
+    answers of 400 and over its block does not name with ``# <status>``, named statuses nothing answered,
+    and saved files whose first bytes do not match their suffix."""
+    failures = []
+    if run.returncode != 0:
+        stopped = re.findall(r"^docs-failed (-?\d+) (\d+)$", run.stderr, re.M)
+        where = "the harness"
+        if stopped and int(stopped[0][0]) >= 0:
+            index, script_line = int(stopped[0][0]), int(stopped[0][1])
+            block = page[index]
+            start = HARNESS.count("\n") + sum(b.code.count("\n") + 2 for b in page[:index]) + 2
+            where = f"{block.where} (near {block.path}:{block.line + script_line - start})"
+        tail = (run.stdout[-3000:] + "\n" + run.stderr[-3000:]).strip()
+        failures.append(f"{where}: exit {run.returncode}\n{tail}")
+    for index, block in enumerate(page):
+        answered = [status for i, status in run.answers if i == index]
+        named = set(NAMED_STATUS.findall(block.code))
+        unnamed = [s for s in answered if (not s or int(s) >= 400) and s not in named]
+        if unnamed:
+            failures.append(
+                f"{block.where}: answers {unnamed} that the block does not name with `# <status>`"
+            )
+        if named - set(answered):
+            failures.append(f"{block.where}: names {sorted(named - set(answered))}, answered {answered}")
+        for words in shell_commands(block.code):
+            saved = next((words[i + 1] for i, w in enumerate(words[:-1]) if w in {"-o", "--output"}), None)
+            if words[0] == "curl" and saved and saved != "/dev/null" and run.returncode == 0:
+                magic = MAGIC.get(Path(saved).suffix, b"")
+                if (
+                    not (run.folder / saved).read_bytes().startswith(magic)
+                    or not (run.folder / saved).stat().st_size
+                ):
+                    failures.append(f"{block.where}: {saved} is not a {Path(saved).suffix} file")
+    return failures
+
+
+@pytest.fixture(scope="module")
+def docs_served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Served, dict[str, str]]]:
+    """One `metairl serve` (API and one worker) for every page's shell blocks; and the environment the blocks
+    run in (this process's, with the server's ``METAIRL_*`` settings, so `metairl keys` finds its database)."""
+    folder = tmp_path_factory.mktemp("docs-serve")
+    with metairl_serve(folder) as served:
+        env = {k: v for k, v in os.environ.items() if not k.startswith("METAIRL_")}
+        yield served, env | {"METAIRL_DATA_DIR": str(folder / "var")}
+
+
+def page_folder(tmp_path: Path) -> Path:
+    """An empty folder to run a page in, where ``docs/`` and ``.venv/`` lead to the repo's, as from a clone."""
+    (tmp_path / "docs").symlink_to(REPO / "docs")
+    (tmp_path / ".venv").symlink_to(Path(sys.prefix))
+    return tmp_path
 
 
 @pytest.mark.worker
 @pytest.mark.slow
-def test_the_readme_curl_block_runs_against_metairl_serve(tmp_path: Path) -> None:
-    """README's curl quickstart, as a bash script with ``set -e``, against a real `metairl serve` (API and
-    worker): it must reach a succeeded job and save a real PNG."""
-    from tests.served import metairl_serve
+@pytest.mark.parametrize("path", [p for p in SHELL_PAGES if runnable(p)])
+def test_shell_blocks_run_in_order_against_metairl_serve(
+    path: str, docs_served: tuple[Served, dict[str, str]], tmp_path: Path
+) -> None:
+    """Every shell block of the page not marked ``no-run``, in order, in one shell, against a real `metairl
+    serve`: it must exit 0, every answer of 400 and over must be one its block names, every status a block
+    names must be answered, and every file saved with ``-o`` must be what its suffix says."""
+    served, env = docs_served
+    page = runnable(path)
+    run = run_shell_blocks(page, served, page_folder(tmp_path), env=env)
+    failures = shell_failures(page, run)
+    assert not failures, "\n".join(failures)
+    assert len(run.answers) >= sum(words[0] == "curl" for b in page for words in shell_commands(b.code))
 
-    (script,) = [b for b in blocks("README.md", "bash") if "/v1/jobs" in b.code]
-    with metairl_serve(tmp_path) as served:
-        done = subprocess.run(
-            ["bash", "-euo", "pipefail", "-c", script.code],
-            cwd=tmp_path,
-            env={**os.environ, "URL": served.url, "METAIRL_API_KEY": served.key},
-            capture_output=True,
-            text=True,
-            timeout=300,
-        )
-    assert done.returncode == 0, done.stdout + done.stderr
-    assert "succeeded" in done.stdout
-    assert (tmp_path / "baseline.png").read_bytes().startswith(b"\x89PNG")
+
+@pytest.mark.worker
+@pytest.mark.slow
+def test_a_failing_shell_block_fails_naming_its_file_and_line(
+    docs_served: tuple[Served, dict[str, str]], tmp_path: Path
+) -> None:
+    """The harness itself: a failing command names its block and line; an unnamed 401 fails, a named one
+    passes; a named status nothing answered fails."""
+    served, env = docs_served
+    first = Block("docs/fake.md", 3, (), 'AUTH="Authorization: Bearer $METAIRL_API_KEY"\n')
+    failing = Block("docs/fake.md", 9, (), 'curl -s "$URL/healthz"\n\nfalse\necho never\n')
+    run = run_shell_blocks([first, failing], served, tmp_path, env=env)
+    assert shell_failures([first, failing], run)[0].startswith(
+        "docs/fake.md:9 (near docs/fake.md:11): exit 1"
+    )
+    unnamed = Block("docs/fake.md", 9, (), 'curl -s "$URL/v1/mdps"\n')
+    named = Block("docs/fake.md", 9, (), 'curl -s "$URL/v1/mdps"  # 401: no key\n')
+    wrong = Block("docs/fake.md", 9, (), 'curl -s "$URL/v1/mdps" -H "$AUTH"  # 401\n')
+    assert (
+        "answers ['401']"
+        in shell_failures([first, unnamed], run_shell_blocks([first, unnamed], served, tmp_path, env=env))[0]
+    )
+    assert shell_failures([first, named], run_shell_blocks([first, named], served, tmp_path, env=env)) == []
+    assert (
+        "names ['401'], answered ['200']"
+        in shell_failures([first, wrong], run_shell_blocks([first, wrong], served, tmp_path, env=env))[0]
+    )
+
+
+@pytest.mark.parametrize("path", SHELL_PAGES)
+def test_shell_blocks_not_run_hold_only_allow_listed_commands(path: str) -> None:
+    for block in shell_blocks(path):
+        assert set(block.tags) <= {NO_RUN}, f"{block.where}: unknown shell block tags {block.tags}"
+        if NO_RUN in block.tags:
+            commands = shell_commands(block.code)
+            assert commands, f"{block.where}: an empty no-run block"
+            for words in commands:
+                assert any(tuple(words[: len(kind)]) == kind for kind in NOT_RUN), (
+                    f"{block.where}: `{' '.join(words)}` is not a command that may go unrun ({list(NOT_RUN)})"
+                )
+
+
+@pytest.mark.parametrize("path", SHELL_PAGES)
+def test_shell_blocks_send_the_one_key_variable_and_fail_rather_than_save_a_problem(path: str) -> None:
+    """``Bearer $METAIRL_API_KEY`` is the only key the blocks send, and a curl that saves its answer to a file
+    has ``--fail`` (``-f``), so a problem+json is never saved as a picture or an array."""
+    for block in runnable(path):
+        keys = set(re.findall(r"Bearer \$\{?(\w+)", block.code))
+        assert keys <= {"METAIRL_API_KEY"}, f"{block.where}: sends keys {keys}"
+        for words in shell_commands(block.code):
+            saves = any(w in {"-o", "--output"} and n != "/dev/null" for w, n in itertools.pairwise(words))
+            fails = "--fail" in words or any(re.fullmatch(r"-[a-zA-Z]*f[a-zA-Z]*", w) for w in words)
+            assert words[0] != "curl" or not saves or fails, (
+                f"{block.where}: {' '.join(words)} saves without --fail"
+            )
