@@ -4,7 +4,11 @@
   per file, against the in-process app (``httpx.Client`` is swapped for FastAPI's TestClient, which takes
   the same ``base_url`` and ``headers``). Blocks marked ``python worker`` need a job to finish: the first
   test stops before them, a second (``@pytest.mark.worker``) runs every block with a real worker process.
-- Shell: every ``curl`` line's path and method must exist in the app's OpenAPI.
+- Shell: every ``curl`` line's path and method must exist in the app's OpenAPI. Every ``bash``/``sh`` block of
+  README.md and docs/*.md runs too, each page's in order in one ``bash -euo pipefail`` shell against one real
+  `metairl serve`: each answer of 400 and over must be named in its block (``# 422``), each named status must
+  occur, files saved with ``-o`` must be what their suffix says. A block tagged ``no-run`` may hold only the
+  allow-listed commands of `NOT_RUN` (starting the service, installing, long experiments tested elsewhere).
 - Configuration: every `Settings` field is a row ``METAIRL_<NAME>`` of README's table, with its default;
   every ``METAIRL_*`` the docs mention is a setting (or a documented extra).
 - Relative links in README and docs/ point at files that exist.
@@ -395,16 +399,10 @@ def test_every_job_config_field_is_in_the_api_guide_with_its_default() -> None:
 NO_RUN = "no-run"
 """Info-string tag of a shell block the test does not run (only the commands of `NOT_RUN` may be in one)."""
 NOT_RUN: dict[tuple[str, ...], str] = {
-    (
-        "bash",
-        "scripts/serve.sh",
-    ): "starts the service: the test runs the blocks against its own `metairl serve`",
+    ("bash", "scripts/serve.sh"): "starts the service; the test runs the blocks against its own",
     ("bash", "scripts/test.sh"): "the whole test suite",
     ("pip", "install"): "installs into the reader's environment",
-    (
-        ".venv/bin/metairl",
-        "demo",
-    ): "18 to 250 jobs; tests/test_demo.py runs `--quick` against `metairl serve`",
+    (".venv/bin/metairl", "demo"): "18 to 250 jobs; tests/test_demo.py runs --quick against metairl serve",
     ("python", "-m", "benchmarks.reliability"): "a benchmark that starts its own service, about 35 s",
     (".venv/bin/python", "docs/examples/motion_tutorial.py", "run"): (
         "two fits of minutes; tests/test_motion_tutorial.py runs the script end to end on a 12×12 grid"
