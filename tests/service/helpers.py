@@ -151,7 +151,9 @@ def store_results(
                 evidence=None if evidence is None else evidence[ordinal],
             )
             ids.append(reward.id)
-        steps = [Progress(step, 3, 1.0 / step, 0.9 / step, 0.1 / step, None, 0.1 * step) for step in (1, 2, 3)]
+        steps = [
+            Progress(step, 3, 1.0 / step, 0.9 / step, 0.1 / step, None, 0.1 * step) for step in (1, 2, 3)
+        ]
         add_step_history(session, job_id, job.attempts, steps)
         job.status = JobStatus.SUCCEEDED.value
         session.commit()

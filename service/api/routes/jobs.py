@@ -145,16 +145,19 @@ def list_events(
     )
 
 
-@router.get("/jobs/{job_id}/history", summary="A job's loss curve", responses=NO_SUCH_JOB)
-def read_history(job: JobDep, session: SessionDep) -> JobHistory:
+@router.get(
+    "/jobs/{job_id}/history", summary="A job's loss curve", response_model=JobHistory, responses=NO_SUCH_JOB
+)
+def read_history(job: JobDep, session: SessionDep) -> JobHistory | Response:
     """Loss, IRL loss, sharing loss and held-out NLL by step: every step of a succeeded fit (`source`
     `steps`), else the progress samples of the latest attempt (`samples`), which the event stream's
     `progress` events extend live."""
     stored = step_history(session, job)
     if stored is not None:
-        return JobHistory.of_steps(
+        body = JobHistory.steps_json(
             job, attempt=stored.attempt, max_steps=stored.max_steps, columns=stored.columns
         )
+        return Response(body, media_type="application/json")
     return JobHistory.of(job, jobs.progress_history(session, job))
 
 
