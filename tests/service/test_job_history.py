@@ -193,4 +193,5 @@ def test_the_longest_history_is_served_within_seconds(
     took = time.perf_counter() - started
     points = response.json()["points"]
     assert len(points) == 100_000 and points[-1]["loss"] == steps[-1].loss
-    assert took < 3.0, f"{took:.2f} s for {len(response.content) / 1e6:.1f} MB"  # 0.4 s on a quiet machine
+    # 0.4 s measured on two busy cores; a model per point took over 4 s
+    assert took < 3.0, f"{took:.2f} s for {len(response.content) / 1e6:.1f} MB"
