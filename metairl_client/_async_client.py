@@ -312,8 +312,9 @@ class AsyncClient:
         return await self._call(ops.list_events(job_id, limit, cursor))
 
     async def job_history(self, job_id: str) -> dict[str, Any]:
-        """`GET /v1/jobs/{id}/history`: the loss curve of the latest attempt (loss, IRL and sharing losses,
-        held-out NLL per progress sample, by step)."""
+        """`GET /v1/jobs/{id}/history`: the loss curve (loss, IRL and sharing losses, held-out NLL by step):
+        every step once the job has succeeded (`source` "steps"), else the latest attempt's progress samples
+        ("samples")."""
         return await self._call(ops.job_history(job_id))
 
     def iter_events(self, job_id: str, *, page_size: int = 100) -> AsyncIterator[dict[str, Any]]:

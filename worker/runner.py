@@ -1,8 +1,8 @@
 """Run one claimed attempt of a job: load its inputs, fit with the engine, store the results — fenced by attempt.
 
 The fit runs in the calling (pool) thread while the attempt's `Monitor` thread keeps its heartbeat,
-progress and cancel flag. Results and the status change to succeeded are one transaction, applied
-only if this attempt still owns the row.
+progress and cancel flag. Results (rewards and every step's losses) and the status change to succeeded
+are one transaction, applied only if this attempt still owns the row.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from metairl_engine.fit import FitResult, TaskData, fit
 from service.jobs.transitions import owned_by, transition
 from service.results.rewards import add_reward
 from service.settings import Settings, WorkerDevice, get_settings
+from service.store.histories import add_step_history
 from service.store.loaders import load_mdp, load_trajectories
 from service.store.models.demonstrators import Task
 from service.store.models.job_status import JobStatus
@@ -207,8 +208,8 @@ def store_results(
     tasks: Sequence[TaskData] = (),
 ) -> None:
     """Write every reward, value and policy, with each reward's spread across the ensemble's members and
-    the evidence the demonstrations of ``tasks`` give per state (none without tasks), and mark the job
-    succeeded, in one transaction, if still owned."""
+    the evidence the demonstrations of ``tasks`` give per state (none without tasks), and the fit's
+    per-step history, and mark the job succeeded, in one transaction, if still owned."""
     n_actions = result.policies.shape[2]
     base_evidence, task_evidence = tasks_evidence(tasks) if tasks else (None, [None] * len(result.rewards))
     with make_session() as session:
@@ -247,5 +248,6 @@ def store_results(
                 uncertainty=None if result.reward_spread is None else result.reward_spread[i],
                 evidence=task_evidence[i],
             )
+        add_step_history(session, job_id, attempt, result.history)
         session.commit()
     log.info("job %s: succeeded", job_id)

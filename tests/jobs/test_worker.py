@@ -15,12 +15,14 @@ import pytest
 import torch
 from sqlalchemy import func, select
 
+from metairl_engine.config import FitConfig
+from metairl_engine.fit import fit
 from service.jobs.queue import CeleryJobQueue
 from service.store.ids import new_id
 from service.store.models.base import utcnow
 from service.store.models.demonstrators import Task
 from service.store.models.job_status import JobStatus
-from service.store.models.jobs import Job, Reward
+from service.store.models.jobs import Job, Reward, StepHistory
 from tests.jobs.conftest import REPO, Stack, settings_environment
 from tests.jobs.helpers import (
     ENDLESS,
@@ -35,6 +37,7 @@ from tests.jobs.helpers import (
 )
 from tests.service.helpers import add_demonstrations, make_mdp, make_task
 from worker.reaper import RESENT
+from worker.runner import load_tasks
 
 pytestmark = [pytest.mark.worker, pytest.mark.slow]
 
@@ -82,6 +85,46 @@ def test_job_succeeds_and_its_rewards_download_as_json_and_npy(
     assert baseline_value.status_code == 409
 
 
+def test_a_succeeded_job_keeps_every_step_the_engine_computed(
+    stack: Stack, worker: subprocess.Popen[bytes]
+) -> None:
+    client, auth = stack.client, stack.auth
+    demonstrator_id, task_ids = demonstrated_tasks(client, auth)
+    config = QUICK | {"holdout_fraction": 0.5}  # a held-out NLL at every step
+    job = wait_for(client, auth, submit(client, auth, demonstrator_id, config)["id"])
+    assert job["status"] == "succeeded", job
+    history = client.get(f"/v1/jobs/{job['id']}/history", headers=auth).json()
+    assert (history["source"], history["attempt"], history["best_step"]) == ("steps", 1, job["best_step"])
+    points = history["points"]
+    assert [p["step"] for p in points] == list(range(1, job["progress"]["step"] + 1))  # one per step
+    assert points[-1] == {k: v for k, v in job["progress"].items() if k != "max_steps"}
+
+    # The same fit again, here: the stored steps are the engine's history, loss for loss.
+    torch.set_num_threads(1)  # as the worker fits a problem this small
+    with stack.client.app.state.sessionmaker() as session:  # type: ignore[attr-defined]
+        tasks = load_tasks(session, task_ids)
+    again = fit(tasks, FitConfig.from_dict(job["config"]))
+    assert len(again.history) == len(points)
+    for point, step in zip(points, again.history, strict=True):
+        assert point["heldout_nll"] is not None
+        assert (
+            point["step"],
+            point["loss"],
+            point["irl_loss"],
+            point["sharing_loss"],
+            point["heldout_nll"],
+        ) == (
+            step.step,
+            step.loss,
+            step.irl_loss,
+            step.sharing_loss,
+            step.heldout_nll,
+        )
+    with stack.client.app.state.sessionmaker() as session:  # type: ignore[attr-defined]
+        stored = session.get_one(StepHistory, job["id"])
+        assert (stored.n_steps, len(stored.data)) == (len(points), 48 * len(points))
+
+
 def test_running_job_reports_progress_and_cancels_within_seconds(
     stack: Stack, worker: subprocess.Popen[bytes]
 ) -> None:
@@ -108,6 +151,8 @@ def test_running_job_reports_progress_and_cancels_within_seconds(
     steps = [e["step"] for e in events if e["kind"] == "progress"]
     assert len(steps) >= 2 and steps == sorted(set(steps))
     assert [e["status"] for e in events if e["kind"] == "status"] == ["queued", "running", "cancelled"]
+    history = client.get(f"/v1/jobs/{running}/history", headers=auth).json()
+    assert history["source"] == "samples" and [p["step"] for p in history["points"]] == steps
 
     time.sleep(1.5)  # the worker now reaches the cancelled job's message and must skip it
     skipped = client.get(f"/v1/jobs/{waiting}", headers=auth).json()

@@ -8,7 +8,9 @@ import numpy as np
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
+from metairl_engine.results import Progress
 from service.results.rewards import add_reward
+from service.store.histories import add_step_history
 from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job
 
@@ -126,7 +128,8 @@ def store_results(
     """Mark `job_id` succeeded with these rewards, as the worker would (no worker needed); their ids.
 
     Rows: the baseline, then one per task of the job in its order, each task with a value function
-    (twice its reward) and a uniform policy; ``uncertainty`` and ``evidence``, where given, one array per row.
+    (twice its reward) and a uniform policy; ``uncertainty`` and ``evidence``, where given, one array per row;
+    and a three-step loss history.
     """
     with app.state.sessionmaker() as session:
         job = session.get_one(Job, job_id)
@@ -148,6 +151,10 @@ def store_results(
                 evidence=None if evidence is None else evidence[ordinal],
             )
             ids.append(reward.id)
+        steps = [
+            Progress(step, 3, 1.0 / step, 0.9 / step, 0.1 / step, None, 0.1 * step) for step in (1, 2, 3)
+        ]
+        add_step_history(session, job_id, job.attempts, steps)
         job.status = JobStatus.SUCCEEDED.value
         session.commit()
         return ids

@@ -81,7 +81,16 @@ def test_deleting_a_demonstrator_then_its_mdps_leaves_no_row_and_no_blob(
     created(client.put(f"/v1/tasks/{task_id}/true-reward", json={"values": [0, 1, 2]}, headers=auth), 200)
     recording = upload_recording(client, auth, dem_id)
     grown = diff(row_counts(app), before)
-    for table in ("mdps", "tasks", "demonstrations", "true_rewards", "recordings", "jobs", "job_events"):
+    for table in (
+        "mdps",
+        "tasks",
+        "demonstrations",
+        "true_rewards",
+        "recordings",
+        "jobs",
+        "job_events",
+        "job_step_histories",
+    ):
         assert grown.get(table, 0) > 0, (table, grown)
     assert grown["rewards"] == 3 and grown["blobs"] > 10
 
@@ -173,7 +182,13 @@ def test_deleting_a_finished_job_keeps_its_inputs(
     before = row_counts(app)
     assert client.delete(f"/v1/jobs/{fitted['job_id']}", headers=auth).status_code == 204
     changed = diff(row_counts(app), before)
-    assert changed == {"jobs": -1, "job_events": changed["job_events"], "rewards": -2, "blobs": -4}, changed
+    assert changed == {
+        "jobs": -1,
+        "job_events": changed["job_events"],
+        "job_step_histories": -1,
+        "rewards": -2,
+        "blobs": -4,
+    }, changed
     assert client.get(f"/v1/rewards/{fitted['reward_ids'][1]}", headers=auth).status_code == 404
     assert client.get(f"/v1/tasks/{fitted['task_ids'][0]}", headers=auth).json()["n_trajectories"] == 1
 

@@ -1,13 +1,23 @@
-"""`GET /v1/jobs/{id}/history`: a job's loss curve from its progress events, latest attempt only, by step."""
+"""`GET /v1/jobs/{id}/history`: a job's loss curve, every stored step once it has succeeded, else its progress
+events (latest attempt only), by step."""
 
 from __future__ import annotations
 
+import time
+
+import pytest
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
+from metairl_engine.results import Progress
+from service.domain.jobs import JobHistory
+from service.jobs.transitions import claim, transition
 from service.store import jobs
+from service.store.histories import add_step_history
 from service.store.models.base import utcnow
+from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, JobEvent
+from tests.service.helpers import add_demonstrations, created, make_task
 from tests.service.test_events_stream import finished_job
 
 
@@ -35,6 +45,7 @@ def test_history_lists_the_progress_samples_by_step_with_every_loss(
     assert response.status_code == 200, response.text
     history = response.json()
     assert history["job_id"] == job_id and history["attempt"] == 1 and history["max_steps"] == 20
+    assert history["source"] == "samples"  # it succeeded before every step was kept
     assert [p["step"] for p in history["points"]] == [10, 20]
     assert history["points"][0] == {
         "step": 10,
@@ -79,3 +90,108 @@ def test_another_labs_job_history_is_not_found(
     response = client.get(f"/v1/jobs/{job_id}/history", headers=auth_b)
     assert response.status_code == 404
     assert response.headers["content-type"].startswith("application/problem+json")
+
+
+def engine_steps(n: int, max_steps: int, *, held_out: bool = True) -> list[Progress]:
+    """``n`` steps as the engine reports them: losses that are no round decimals, elapsed time growing."""
+    return [
+        Progress(
+            step=step,
+            max_steps=max_steps,
+            loss=2.0 / (step + 0.37),
+            irl_loss=1.7 / (step + 0.37),
+            sharing_loss=0.3 / (step + 0.37),
+            heldout_nll=1.0 + 1.0 / step if held_out else None,
+            elapsed_s=0.013 * step,
+        )
+        for step in range(1, n + 1)
+    ]
+
+
+def keep_steps(app: FastAPI, job_id: str, steps: list[Progress]) -> None:
+    """Store ``steps`` as the job's step history, as the worker does with its results."""
+    with app.state.sessionmaker() as session:
+        add_step_history(session, job_id, session.get_one(Job, job_id).attempts, steps)
+        session.commit()
+
+
+def test_a_succeeded_job_with_its_steps_kept_returns_every_step_exactly(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    job_id = finished_job(app, client, auth)  # its progress samples: steps 10 and 20
+    steps = engine_steps(jobs.HISTORY_MAX_POINTS + 1000, 5000)
+    keep_steps(app, job_id, steps)
+    response = client.get(f"/v1/jobs/{job_id}/history", headers=auth)
+    assert response.status_code == 200 and response.headers["content-type"] == "application/json"
+    history = response.json()
+    JobHistory.model_validate(history)  # the documented body
+    assert (history["source"], history["attempt"], history["max_steps"]) == ("steps", 1, 5000)
+    assert len(history["points"]) == len(steps)  # every step, never thinned
+    for point, step in zip(history["points"], steps, strict=True):
+        assert point == {
+            "step": step.step,
+            "loss": step.loss,
+            "irl_loss": step.irl_loss,
+            "sharing_loss": step.sharing_loss,
+            "heldout_nll": step.heldout_nll,
+            "elapsed_s": step.elapsed_s,
+        }
+
+
+def test_steps_without_a_held_out_nll_have_it_null(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    job_id = finished_job(app, client, auth)
+    keep_steps(app, job_id, engine_steps(3, 3, held_out=False))
+    points = client.get(f"/v1/jobs/{job_id}/history", headers=auth).json()["points"]
+    assert [p["heldout_nll"] for p in points] == [None, None, None]
+    assert [p["step"] for p in points] == [1, 2, 3]
+
+
+def test_the_steps_of_an_earlier_attempt_are_not_the_latest_curve(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    job_id = finished_job(app, client, auth)
+    keep_steps(app, job_id, engine_steps(30, 30))
+    with app.state.sessionmaker() as session:
+        session.get_one(Job, job_id).attempts = 2
+        session.add(sample(job_id, 2, 5))
+        session.commit()
+    history = client.get(f"/v1/jobs/{job_id}/history", headers=auth).json()
+    assert (history["source"], history["attempt"]) == ("samples", 2)
+    assert [p["step"] for p in history["points"]] == [5]
+
+
+@pytest.mark.parametrize("status", [JobStatus.CANCELLED, JobStatus.FAILED])
+def test_a_cancelled_or_failed_job_keeps_the_progress_samples_it_had(
+    app: FastAPI, client: TestClient, auth: dict[str, str], status: JobStatus
+) -> None:
+    task = make_task(client, auth)
+    add_demonstrations(client, auth, task["id"])
+    job_id = created(
+        client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
+    )["id"]
+    with app.state.sessionmaker() as session:
+        attempt = claim(session, job_id)
+        assert attempt is not None
+        session.add_all([sample(job_id, attempt, 4), sample(job_id, attempt, 8)])
+        transition(session, job_id, JobStatus.RUNNING, status, message="stopped at step 8")
+        session.commit()
+    history = client.get(f"/v1/jobs/{job_id}/history", headers=auth).json()
+    assert (history["source"], history["attempt"]) == ("samples", 1)
+    assert [p["step"] for p in history["points"]] == [4, 8]
+
+
+def test_the_longest_history_is_served_within_seconds(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    job_id = finished_job(app, client, auth)
+    steps = engine_steps(100_000, 100_000)
+    keep_steps(app, job_id, steps)
+    started = time.perf_counter()
+    response = client.get(f"/v1/jobs/{job_id}/history", headers=auth)
+    took = time.perf_counter() - started
+    points = response.json()["points"]
+    assert len(points) == 100_000 and points[-1]["loss"] == steps[-1].loss
+    # 0.4 s measured on two busy cores; a model per point took over 4 s
+    assert took < 3.0, f"{took:.2f} s for {len(response.content) / 1e6:.1f} MB"

@@ -8,6 +8,7 @@ The demo data and jobs are those of `scripts/screenshots.py` (made once for the 
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -74,7 +75,8 @@ def test_run_page_draws_the_loss_curve_settings_and_best_step_of_a_job(demo: Dem
     job_id = demo.ids["run"]
     history = ok(demo.http.get(f"/v1/jobs/{job_id}/history"), 200)
     job = ok(demo.http.get(f"/v1/jobs/{job_id}"), 200)
-    assert len(history["points"]) >= 5, history  # progress samples while it ran, not only the last one
+    assert history["source"] == "steps"  # every step of the fit, not the samples taken while it ran
+    assert [p["step"] for p in history["points"]] == list(range(1, job["progress"]["step"] + 1))
     page, errors = dashboard(browser, demo)
     row = page.locator(f"tr[data-job='{job_id}']")
     assert "max_steps=1500" in row.locator("[data-role='config']").inner_text()
@@ -84,6 +86,7 @@ def test_run_page_draws_the_loss_curve_settings_and_best_step_of_a_job(demo: Dem
     curve = page.locator(f"#run[data-job='{job_id}'] #loss-curve svg")
     curve.wait_for()
     assert curve.get_attribute("data-points") == str(len(history["points"]))
+    assert curve.get_attribute("data-source") == "steps"
     series = curve.locator("path").evaluate_all("ps => ps.map(p => p.dataset.series)")
     assert {"loss", "irl_loss", "sharing_loss"} <= set(series)
     assert curve.locator("path[data-series='loss']").evaluate("p => p.getTotalLength()") > 100
@@ -107,6 +110,59 @@ def test_loss_curve_grows_from_the_event_stream_while_a_job_runs(demo: Demo, bro
     )
     ok(demo.http.post(f"/v1/jobs/{job_id}/cancel"), 202)
     wait_for(demo.http, [job_id])
+    assert errors == []
+
+
+def test_the_curve_of_a_job_that_succeeds_while_shown_becomes_every_step(
+    demo: Demo, browser: Browser
+) -> None:
+    job_id = submit(demo.http, demo.ids["four_tasks"], FAST | {"max_steps": 1500})
+    page, errors = dashboard(browser, demo)
+    page.locator(f"tr[data-job='{job_id}'] [data-action='run']").click()
+    page.wait_for_selector(f"#run[data-job='{job_id}'] #loss-curve svg[data-source='samples']")
+    page.wait_for_selector(f"#run[data-job='{job_id}'] #loss-curve svg[data-source='steps']", timeout=120_000)
+    job = ok(demo.http.get(f"/v1/jobs/{job_id}"), 200)
+    assert job["status"] == "succeeded"
+    curve = page.locator("#loss-curve svg")
+    assert curve.get_attribute("data-points") == str(job["progress"]["step"])
+    legend = page.locator("#loss-curve .legend [data-series='loss']").inner_text()
+    assert legend.endswith(f"{job['progress']['loss']:.3f}")  # the last step's loss
+    assert errors == []
+
+
+def test_a_curve_of_100000_steps_is_drawn_with_a_few_points_a_pixel(demo: Demo, browser: Browser) -> None:
+    job_id = demo.ids["run"]
+    answer = ok(demo.http.get(f"/v1/jobs/{job_id}/history"), 200)
+    n = 100_000
+    answer |= {
+        "max_steps": n,
+        "best_step": n // 2,
+        "points": [
+            {
+                "step": i,
+                "loss": 1 / i + (i % 7) * 1e-3,
+                "irl_loss": 0.9 / i,
+                "sharing_loss": 0.1 / i,
+                "heldout_nll": 1 + 1 / i,
+                "elapsed_s": i * 1e-3,
+            }
+            for i in range(1, n + 1)
+        ],
+    }
+    page, errors = dashboard(browser, demo)
+    page.route(
+        lambda url: url.endswith("/history"),
+        lambda route: route.fulfill(status=200, content_type="application/json", body=json.dumps(answer)),
+    )
+    page.locator(f"tr[data-job='{job_id}'] [data-action='run']").click()
+    curve = page.locator(f"#run[data-job='{job_id}'] #loss-curve svg[data-source='steps']")
+    curve.wait_for()
+    assert curve.get_attribute("data-points") == str(n)
+    width = float(curve.get_attribute("width") or 0)
+    for series in ("loss", "irl_loss", "sharing_loss", "heldout_nll"):
+        d = curve.locator(f"path[data-series='{series}']").get_attribute("d") or ""
+        drawn = d.count("L") + 1
+        assert 2 * width <= drawn <= 4 * 2 * width, (series, drawn, width)  # every half pixel, at most 4 each
     assert errors == []
 
 

@@ -26,6 +26,7 @@ from service.problems import BROKER_RETRY_AFTER_S, BrokerUnavailable
 from service.store import jobs
 from service.store.deletion import commit_deletion, discard_unsent_job
 from service.store.deletion import delete_job as delete_job_rows
+from service.store.histories import step_history
 from service.store.models.job_status import JobStatus
 from service.store.owned import not_found
 
@@ -144,10 +145,19 @@ def list_events(
     )
 
 
-@router.get("/jobs/{job_id}/history", summary="A job's loss curve", responses=NO_SUCH_JOB)
-def read_history(job: JobDep, session: SessionDep) -> JobHistory:
-    """Loss, IRL loss, sharing loss and held-out NLL per progress sample of the latest attempt, by step; the
-    event stream's `progress` events extend it live."""
+@router.get(
+    "/jobs/{job_id}/history", summary="A job's loss curve", response_model=JobHistory, responses=NO_SUCH_JOB
+)
+def read_history(job: JobDep, session: SessionDep) -> JobHistory | Response:
+    """Loss, IRL loss, sharing loss and held-out NLL by step: every step of a succeeded fit (`source`
+    `steps`), else the progress samples of the latest attempt (`samples`), which the event stream's
+    `progress` events extend live."""
+    stored = step_history(session, job)
+    if stored is not None:
+        body = JobHistory.steps_json(
+            job, attempt=stored.attempt, max_steps=stored.max_steps, columns=stored.columns
+        )
+        return Response(body, media_type="application/json")
     return JobHistory.of(job, jobs.progress_history(session, job))
 
 

@@ -38,7 +38,7 @@ const state = {
   cursors: [null], // the job list's page cursors: [first page, second page, …] up to the page shown
   nextCursor: null, // the cursor of the page after the one shown (null: it is the last)
   run: null, // job id whose run page is shown
-  history: null, // {jobId, attempt, maxSteps, bestStep, points} of the run page's loss curve
+  history: null, // {jobId, attempt, maxSteps, bestStep, source, points} of the run page's loss curve
   runCall: 0, // bumped by each showRun, so an earlier call's late answers never redraw the run page
   configSchema: null, // JobConfig's properties from /openapi.json (defaults, ranges, descriptions)
   mdps: [],
@@ -1302,12 +1302,34 @@ async function showRun(id, { scroll = false } = {}) {
       getJson(`/v1/jobs/${encodeURIComponent(id)}/history`),
     ]);
     if (call !== state.runCall) return;
-    state.history = { jobId: id, attempt: history.attempt, maxSteps: history.max_steps, bestStep: history.best_step, points: history.points };
+    state.history = historyState(id, history);
     state.jobs.set(id, job);
     renderRun(job, null);
     if (job.status === "succeeded" && state.selected !== id) showResults(id);
   } catch (error) {
     if (call === state.runCall) reportError(error);
+  }
+}
+
+// The run page's curve from a `GET /v1/jobs/{id}/history` answer: every step ("steps") or samples.
+function historyState(id, history) {
+  return { jobId: id, attempt: history.attempt, maxSteps: history.max_steps, bestStep: history.best_step, source: history.source || "samples", points: history.points };
+}
+
+// Once the run page's job has succeeded, its curve is read again: every step of the fit, not the samples.
+async function loadStepHistory(id) {
+  const h = state.history;
+  if (!h || h.jobId !== id || h.source !== "samples" || h.reloading) return;
+  h.reloading = true;
+  const call = state.runCall;
+  try {
+    const history = await getJson(`/v1/jobs/${encodeURIComponent(id)}/history`);
+    if (call !== state.runCall || state.run !== id) return;
+    state.history = historyState(id, history);
+    drawLossCurve($("loss-curve"), state.history);
+  } catch (error) {
+    h.reloading = false;
+    reportError(error);
   }
 }
 
@@ -1333,6 +1355,7 @@ function renderRun(job, previous) {
   if (state.history && state.history.jobId === job.id) {
     state.history.bestStep = job.best_step;
     drawLossCurve($("loss-curve"), state.history);
+    if (job.status === "succeeded") loadStepHistory(job.id);
   }
   const succeeded = job.status === "succeeded";
   if (succeeded && (!previous || previous.status !== "succeeded" || !$("downloads").firstChild)) renderDownloads(job);
@@ -1375,7 +1398,7 @@ function renderRunConfig(config) {
 // A progress event of the run page's job: a new point of its curve (a new attempt starts a new curve).
 function extendHistory(id, progress, attempt) {
   const h = state.history;
-  if (!h || h.jobId !== id) return;
+  if (!h || h.jobId !== id || h.source === "steps") return; // every step is there already
   if (typeof attempt === "number" && attempt !== h.attempt) {
     h.attempt = attempt;
     h.points = [];
@@ -1423,9 +1446,17 @@ function drawLossCurve(box, history) {
     return;
   }
   const shown = SERIES.filter(([key]) => points.some((p) => Number.isFinite(p[key])));
-  const values = shown.flatMap(([key]) => points.map((p) => p[key]).filter(Number.isFinite));
-  let lo = Math.min(...values);
-  let hi = Math.max(...values);
+  let lo = Infinity;
+  let hi = -Infinity;
+  for (const [key] of shown) {
+    for (const p of points) {
+      const v = p[key];
+      if (Number.isFinite(v)) {
+        if (v < lo) lo = v;
+        if (v > hi) hi = v;
+      }
+    }
+  }
   const pad = (hi - lo || Math.abs(hi) || 1) * 0.06;
   lo -= pad;
   hi += pad;
@@ -1436,7 +1467,7 @@ function drawLossCurve(box, history) {
   const M = { left: 52, right: 12, top: 10, bottom: 30 };
   const x = (step) => M.left + (step / xMax) * (W - M.left - M.right);
   const y = (v) => M.top + (1 - (v - lo) / (hi - lo)) * (H - M.top - M.bottom);
-  const plot = svg("svg", { viewBox: `0 0 ${W} ${H}`, width: W, height: H, role: "img", "aria-label": "loss curve", "data-points": points.length });
+  const plot = svg("svg", { viewBox: `0 0 ${W} ${H}`, width: W, height: H, role: "img", "aria-label": "loss curve", "data-points": points.length, "data-source": history.source || "samples" });
   for (const t of ticks(lo, hi)) {
     plot.append(svg("line", { x1: M.left, x2: W - M.right, y1: y(t), y2: y(t), class: "grid" }));
     plot.append(svg("text", { x: M.left - 6, y: y(t) + 4, "text-anchor": "end", class: "tick" }, fmt(t, 2)));
@@ -1454,11 +1485,7 @@ function drawLossCurve(box, history) {
     plot.append(svg("text", { x: right ? bx - 4 : bx + 4, y: M.top + 10, "text-anchor": right ? "end" : "start", class: "tick" }, `kept step ${history.bestStep}`));
   }
   for (const [key, , colour] of shown) {
-    const d = points
-      .filter((p) => Number.isFinite(p[key]))
-      .map((p, i) => `${i ? "L" : "M"}${x(p.step).toFixed(1)},${y(p[key]).toFixed(1)}`)
-      .join("");
-    plot.append(svg("path", { d, fill: "none", stroke: colour, "stroke-width": 1.6, "data-series": key }));
+    plot.append(svg("path", { d: linePath(points, key, x, y), fill: "none", stroke: colour, "stroke-width": 1.6, "data-series": key }));
   }
   const last = points[points.length - 1];
   const legend = el(
@@ -1467,6 +1494,36 @@ function drawLossCurve(box, history) {
     shown.map(([key, label, colour]) => el("span", { "data-series": key }, el("i", { style: { background: colour } }), `${label} ${fmt(last[key])}`)),
   );
   box.replaceChildren(plot, legend);
+}
+
+// The SVG path of one series. Where points are denser than half a pixel (a curve of every step, up to
+// 100,000), each pixel column draws the first, lowest, highest and last value it holds: the same picture
+// from a path of at most four points a pixel.
+function linePath(points, key, x, y) {
+  const parts = [];
+  let column = null;
+  let seen = [];
+  const flush = () => {
+    if (!seen.length) return;
+    const low = seen.reduce((a, b) => (b[1] < a[1] ? b : a));
+    const high = seen.reduce((a, b) => (b[1] > a[1] ? b : a));
+    const kept = seen.length <= 4 ? seen : [seen[0], ...(low[0] <= high[0] ? [low, high] : [high, low]), seen[seen.length - 1]];
+    for (const [px, v] of kept) parts.push(`${parts.length ? "L" : "M"}${px.toFixed(1)},${y(v).toFixed(1)}`);
+    seen = [];
+  };
+  for (const p of points) {
+    const v = p[key];
+    if (!Number.isFinite(v)) continue;
+    const px = x(p.step);
+    const c = Math.round(px * 2);
+    if (c !== column) {
+      flush();
+      column = c;
+    }
+    seen.push([px, v]);
+  }
+  flush();
+  return parts.join("");
 }
 
 // ---- downloads: every format of every reward, the MDP arrays, the recordings' demonstrations ------
