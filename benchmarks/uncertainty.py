@@ -9,7 +9,9 @@ correlation of an estimate with that error is taken over every task's states but
 the spread (`FitResult.reward_spread`), and the graph distance (hops, `demo_distance`) to the nearest state
 the task's demonstrations visit. The spread is also correlated with the absolute difference between the
 fit and a second default fit of seed `REFIT_SEED` (other initial weights, other folds; affine-aligned the
-same way): what a spread across members estimates is that variability. "|truth − mean|" correlates the error with the true reward's own distance
+same way): what a spread across members estimates is that variability; and the two fits' absolute errors
+with each other: where they agree, the error is one every fit makes, which no spread across fits can show.
+"|truth − mean|" correlates the error with the true reward's own distance
 from its mean: not an estimate (it needs the truth) but what ranks the error where the learned reward explains
 little of the truth. The baseline likewise against the world's reward (terrain: −cost). Also the mean absolute
 error by evidence (`metairl_engine.evidence`: visited, next to a visit, elsewhere). Rows with their provenance
@@ -101,7 +103,7 @@ def score_world(family: str, index: int) -> dict[str, Any]:
     cpu = time.process_time() - started
     refit = fit(tasks, FitConfig(seed=REFIT_SEED))
     assert result.reward_spread is not None and result.baseline_spread is not None
-    pooled: dict[str, list[np.ndarray]] = {k: [] for k in ("error", "refit", *ESTIMATES)}
+    pooled: dict[str, list[np.ndarray]] = {k: [] for k in ("error", "refit", "refit_error", *ESTIMATES)}
     errors: dict[float, list[np.ndarray]] = {VISITED: [], NEXT_TO_VISITED: [], 0.0: []}
     pearsons = []
     for i, sim in enumerate(sims):
@@ -111,6 +113,7 @@ def score_world(family: str, index: int) -> dict[str, Any]:
         pearsons.append(float(np.corrcoef(result.rewards[i][mask], truth)[0, 1]))
         pooled["error"].append(error)
         pooled["refit"].append(absolute_error(refit.rewards[i], result.rewards[i], mask))
+        pooled["refit_error"].append(absolute_error(refit.rewards[i], sim.true_reward, mask))
         pooled["spread"].append(result.reward_spread[i][mask])
         pooled["hops"].append(demo_distance(mdp, sim.trajectories)[mask])
         pooled["truth_offset"].append(np.abs(truth - truth.mean()))
@@ -126,6 +129,7 @@ def score_world(family: str, index: int) -> dict[str, Any]:
         "pearson": float(np.mean(pearsons)),
         **{f"rho_{k}": float(spearmanr(np.concatenate(pooled[k]), error)[0]) for k in ESTIMATES},
         "rho_baseline": float(spearmanr(result.baseline_spread, base_error)[0]),
+        "rho_error_refit_error": float(spearmanr(error, np.concatenate(pooled["refit_error"]))[0]),
         "rho_spread_refit": float(
             spearmanr(np.concatenate(pooled["spread"]), np.concatenate(pooled["refit"]))[0]
         ),
@@ -142,8 +146,9 @@ def table(rows: list[dict[str, Any]]) -> str:
     lines = [
         "| family | worlds | Pearson | Spearman(spread, abs error) | Spearman(hops to a demo, abs error) | "
         "baseline: Spearman(spread, abs error) | Spearman(abs(truth − mean), abs error) | Spearman(spread, abs "
-        "difference from a refit) | abs error visited / next to a visit / elsewhere | CPU s per fit |",
-        "| --- " * 10 + "|",
+        "difference from a refit) | Spearman(abs error, the refit's abs error) | abs error visited / next to a "
+        "visit / elsewhere | CPU s per fit |",
+        "| --- " * 11 + "|",
     ]
     for family in dict.fromkeys(r["family"] for r in rows):
         sel = [r for r in rows if r["family"] == family]
@@ -153,7 +158,7 @@ def table(rows: list[dict[str, Any]]) -> str:
 
         lines.append(
             f"| {family} | {len(sel)} | {mean('pearson'):.3f} | {mean('rho_spread'):+.2f} | {mean('rho_hops'):+.2f} "
-            f"| {mean('rho_baseline'):+.2f} | {mean('rho_truth_offset'):+.2f} | {mean('rho_spread_refit'):+.2f} | {mean(f'error_{VISITED}'):.3f} / "
+            f"| {mean('rho_baseline'):+.2f} | {mean('rho_truth_offset'):+.2f} | {mean('rho_spread_refit'):+.2f} | {mean('rho_error_refit_error'):+.2f} | {mean(f'error_{VISITED}'):.3f} / "
             f"{mean(f'error_{NEXT_TO_VISITED}'):.3f} / {mean('error_0.0'):.3f} | {mean('cpu_seconds'):.1f} |"
         )
     return "\n".join(lines)
