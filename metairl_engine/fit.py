@@ -619,7 +619,7 @@ def member_spread(members: torch.Tensor) -> np.ndarray | None:
     """Per state, the standard deviation across the ensemble's K members (dim 0) of their rewards, each put
     on the ensemble mean's scale first by a least-squares affine fit over the states (a reward's level and
     scale are not identified, so members that differ only so agree); float32 of shape ``members.shape[1:]``,
-    None with K = 1."""
+    None with K = 1. What it estimates is the variability of a fit, not its error (`FitResult`)."""
     if members.shape[0] < 2:
         return None
     centred = members - members.mean(dim=-1, keepdim=True)
