@@ -11,11 +11,11 @@ the task's demonstrations visit. The spread is also correlated with the absolute
 fit and a second default fit of seed `REFIT_SEED` (other initial weights, other folds; affine-aligned the
 same way): what a spread across members estimates is that variability; and the two fits' absolute errors
 with each other: where they agree, the error is one every fit makes, which no spread across fits can show.
-"|truth − mean|" correlates the error with the true reward's own distance
-from its mean: not an estimate (it needs the truth) but what ranks the error where the learned reward explains
-little of the truth. The baseline likewise against the world's reward (terrain: −cost). Also the mean absolute
-error by evidence (`metairl_engine.evidence`: visited, next to a visit, elsewhere). Rows with their provenance
-go to ``uncertainty_results.json`` beside this script. Usage::
+"|truth − mean|" correlates the error with the true reward's own distance from its mean: not an estimate
+(it needs the truth) but what ranks the error where the learned reward explains little of the truth. The
+baseline likewise against the world's reward (terrain: −cost). Also the mean absolute error by evidence
+(`metairl_engine.evidence`: visited, next to a visit, elsewhere). The run's rows with their provenance
+replace ``uncertainty_results.json`` beside this script (the results page reads it). Usage::
 
     .venv/bin/python -m benchmarks.uncertainty [--worlds 3] [--families repo multi-objectworld …]
 """
