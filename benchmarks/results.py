@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks import ablation, accuracy, versus
+from benchmarks import ablation, accuracy, uncertainty, versus
 
 HERE = Path(__file__).resolve().parent
 PAGE = HERE / "RESULTS.md"
@@ -264,6 +264,31 @@ def versus_section() -> list[str]:
     return out
 
 
+def uncertainty_section() -> list[str]:
+    """Does the reward's spread across the ensemble's members say where the reward is wrong, per family."""
+    stored = load("uncertainty_results.json")
+    out = ["## Uncertainty per state", ""]
+    if stored is None:
+        return [*out, "No stored run: `python -m benchmarks.uncertainty` makes one.", ""]
+    out += [
+        "One default fit per world (terrain: 8 tasks × 3 demonstrations; multi-task families: 8 goal tasks × 3; "
+        "objectworld: 16 paths of 8 steps), and a second of another seed. Each learned reward is put on its true "
+        "reward's scale by a least-squares affine fit; Spearman correlations are pooled over every task's "
+        "states but its goal. Spread: `FitResult.reward_spread`; hops: moves to the nearest state the task's "
+        "demonstrations visit; baseline: its spread against its error w.r.t. the world's reward (terrain: "
+        "−cost). Abs(truth − mean) is no estimate (it needs the truth): it is what ranks the error where the "
+        "learned reward explains little of the truth. The refit columns: how far the spread ranks the "
+        "difference between the two fits, and how far the two fits' errors rank alike. The frozen family is "
+        'only reported. docs/method.md, "Uncertainty per state", reads the table.',
+        "",
+        *provenance_lines([stored["provenance"]], [stored["provenance"]["command"]]),
+        "",
+        uncertainty.table(stored["rows"]),
+        "",
+    ]
+    return out
+
+
 def page() -> str:
     """The whole of RESULTS.md."""
     lines = [
@@ -280,6 +305,7 @@ def page() -> str:
         *scale_section(),
         *load_section(),
         *versus_section(),
+        *uncertainty_section(),
     ]
     return "\n".join(lines).rstrip("\n") + "\n"
 

@@ -1,28 +1,69 @@
 """Does the reward's spread across the ensemble's members say where the learned reward is wrong?
 
-On worlds of each terrain generator of `ablation.GENERATORS` (the repo's, the frozen one, the slippery one),
-one default fit of 8 tasks × 3 demonstrations; for each task reward, the learned reward is put on the true
-reward's scale by a least-squares affine fit (its level and scale are not identified), and the Spearman
-correlation between the spread (`FitResult.reward_spread`) and the absolute error is taken over the states
-other than the goal; the baseline likewise against −cost; "relative spread" divides the spread by the
-state's distance from the reward's mean. Also the mean absolute error by evidence
-(`metairl_engine.evidence`: visited, next to a visit, elsewhere). Usage::
+One default fit per world of every family: the terrain generators of `ablation.GENERATORS` (8 tasks × 3
+demonstrations) and the published families of `benchmarks.families.FAMILIES` at their smaller demonstration
+count (the multi-task forms: 8 goal tasks × 3; objectworld single-task: 16 paths of 8 steps), the frozen one
+only reported. For each task reward, the learned reward is put on the true reward's scale by a least-squares
+affine fit (its level and scale are not identified) and its absolute error taken per state; the Spearman
+correlation of an estimate with that error is taken over every task's states but its goal, pooled. Estimates:
+the spread (`FitResult.reward_spread`), and the graph distance (hops, `demo_distance`) to the nearest state
+the task's demonstrations visit. The spread is also correlated with the absolute difference between the
+fit and a second default fit of seed `REFIT_SEED` (other initial weights, other folds; affine-aligned the
+same way): what a spread across members estimates is that variability; and the two fits' absolute errors
+with each other: where they agree, the error is one every fit makes, which no spread across fits can show.
+"|truth − mean|" correlates the error with the true reward's own distance from its mean: not an estimate
+(it needs the truth) but what ranks the error where the learned reward explains little of the truth. The
+baseline likewise against the world's reward (terrain: −cost). Also the mean absolute error by evidence
+(`metairl_engine.evidence`: visited, next to a visit, elsewhere). The run's rows with their provenance
+replace ``uncertainty_results.json`` beside this script (the results page reads it). Usage::
 
-    .venv/bin/python -m benchmarks.uncertainty [--worlds 3] [--tasks 8] [--demos 3]
+    .venv/bin/python -m benchmarks.uncertainty [--worlds 3] [--families repo multi-objectworld …]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
+import torch
+from scipy.sparse.csgraph import dijkstra
 from scipy.stats import spearmanr
 
 from benchmarks.ablation import GENERATORS
+from benchmarks.families import FAMILIES, tasks_of
+from benchmarks.provenance import provenance
 from metairl_engine import FitConfig
+from metairl_engine.demos import Trajectory
 from metairl_engine.evidence import NEXT_TO_VISITED, VISITED, evidence
+from metairl_engine.mdp import MDP
+from metairl_engine.planning import transition_matrix
 from metairl_engine.results import TaskData
+from metairl_engine.sim.terrain import SimTask
+
+RESULTS = Path(__file__).resolve().parent / "uncertainty_results.json"
+N_TASKS, N_DEMOS = 8, 3
+"""Tasks and demonstrations per task of a terrain world (the families bring their own)."""
+
+ROWS = (
+    *GENERATORS,
+    "multi-objectworld",
+    "multi-binaryworld",
+    "objectworld",
+    "multi-objectworld-discrete (frozen)",
+)
+"""The table's families, in order: terrain generators, then the published families (the frozen one last)."""
+
+REFIT_SEED = 1
+"""Seed of the second default fit per world, whose difference from the first the spread should predict."""
+
+ESTIMATES = ("spread", "hops", "truth_offset")
+"""Per-state quantities correlated with the absolute error (see the module docstring)."""
 
 
 def absolute_error(learned: np.ndarray, truth: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -32,69 +73,112 @@ def absolute_error(learned: np.ndarray, truth: np.ndarray, mask: np.ndarray) -> 
     return np.abs(a * x + b - y)
 
 
-def score_world(generator: str, index: int, *, n_tasks: int, n_demos: int) -> dict[str, float]:
-    """One fit on world ``index``: Spearman(spread, |error|) over tasks and of the baseline, error by evidence."""
+def demo_distance(mdp: MDP, trajectories: list[Trajectory]) -> np.ndarray:
+    """Per state, the fewest moves (either way round, any action) to a state ``trajectories`` visit."""
+    p = transition_matrix(mdp).tocoo()
+    graph = sp.csr_matrix((np.ones(p.nnz), (p.row // mdp.n_actions, p.col)), shape=(mdp.n_states,) * 2)
+    visited = np.unique(np.concatenate([np.asarray(t.states) for t in trajectories]))
+    return np.asarray(dijkstra(graph + graph.T, unweighted=True, indices=visited, min_only=True))
+
+
+def world_of(family: str, index: int) -> tuple[MDP, list[SimTask], np.ndarray]:
+    """World ``index`` of ``family``: its MDP, its tasks, and the baseline's truth."""
+    if family in GENERATORS:
+        world, sims = GENERATORS[family](index)
+        sims = [replace(s, trajectories=s.trajectories[:N_DEMOS]) for s in sims[:N_TASKS]]
+        return world.mdp, sims, -world.cost
+    spec = FAMILIES[family]
+    reward_world = spec.world(index)
+    return reward_world.mdp, tasks_of(spec, reward_world, index, spec.demos[0]), reward_world.reward
+
+
+def score_world(family: str, index: int) -> dict[str, Any]:
+    """One default fit on world ``index``: pooled Spearman of each estimate with |error|, and more."""
     from metairl_engine.fit import fit
 
-    world, sims = GENERATORS[generator](index)
-    chosen = sims[:n_tasks]
-    tasks = [TaskData(world.mdp, s.trajectories[:n_demos], s.name) for s in chosen]
-    started = time.perf_counter()
+    mdp, sims, base_truth = world_of(family, index)
+    tasks = [TaskData(mdp, s.trajectories, s.name) for s in sims]
+    started = time.process_time()
     result = fit(tasks, FitConfig())
-    wall = time.perf_counter() - started
+    cpu = time.process_time() - started
+    refit = fit(tasks, FitConfig(seed=REFIT_SEED))
     assert result.reward_spread is not None and result.baseline_spread is not None
-    rhos, relative, errors = [], [], {VISITED: [], NEXT_TO_VISITED: [], 0.0: []}
-    for i, (sim, task) in enumerate(zip(chosen, tasks, strict=True)):
-        mask = np.arange(world.mdp.n_states) != sim.goal
+    pooled: dict[str, list[np.ndarray]] = {k: [] for k in ("error", "refit", "refit_error", *ESTIMATES)}
+    errors: dict[float, list[np.ndarray]] = {VISITED: [], NEXT_TO_VISITED: [], 0.0: []}
+    pearsons = []
+    for i, sim in enumerate(sims):
+        mask = np.arange(mdp.n_states) != sim.goal
         error = absolute_error(result.rewards[i], sim.true_reward, mask)
-        spread = result.reward_spread[i][mask]
-        rhos.append(spearmanr(spread, error)[0])
-        # the spread over the state's distance from the reward's mean: where the members cannot tell whether
-        # the state is better or worse than average
-        offset = np.abs(result.rewards[i][mask] - result.rewards[i][mask].mean())
-        relative.append(spearmanr(spread / (offset + 1e-6), error)[0])
-        seen = evidence(world.mdp, task.trajectories)[mask]
+        truth = sim.true_reward[mask]
+        pearsons.append(float(np.corrcoef(result.rewards[i][mask], truth)[0, 1]))
+        pooled["error"].append(error)
+        pooled["refit"].append(absolute_error(refit.rewards[i], result.rewards[i], mask))
+        pooled["refit_error"].append(absolute_error(refit.rewards[i], sim.true_reward, mask))
+        pooled["spread"].append(result.reward_spread[i][mask])
+        pooled["hops"].append(demo_distance(mdp, sim.trajectories)[mask])
+        pooled["truth_offset"].append(np.abs(truth - truth.mean()))
+        seen = evidence(mdp, sim.trajectories)[mask]
         for level, found in errors.items():
-            found.extend(error[seen == level])
-    every = np.ones(world.mdp.n_states, dtype=bool)
-    base_error = absolute_error(result.baseline, -world.cost, every)
+            found.append(error[seen == level])
+    error = np.concatenate(pooled["error"])
+    every = np.ones(mdp.n_states, dtype=bool)
+    base_error = absolute_error(result.baseline, base_truth, every)
     return {
-        "task_rho": float(np.mean(rhos)),
-        "relative_rho": float(np.mean(relative)),
-        "baseline_rho": float(spearmanr(result.baseline_spread, base_error)[0]),
-        **{f"error_{level}": float(np.mean(found)) if found else np.nan for level, found in errors.items()},
-        "wall_s": wall,
+        "family": family,
+        "world": index,
+        "pearson": float(np.mean(pearsons)),
+        **{f"rho_{k}": float(spearmanr(np.concatenate(pooled[k]), error)[0]) for k in ESTIMATES},
+        "rho_baseline": float(spearmanr(result.baseline_spread, base_error)[0]),
+        "rho_error_refit_error": float(spearmanr(error, np.concatenate(pooled["refit_error"]))[0]),
+        "rho_spread_refit": float(
+            spearmanr(np.concatenate(pooled["spread"]), np.concatenate(pooled["refit"]))[0]
+        ),
+        **{
+            f"error_{level}": float(np.concatenate(found).mean()) if sum(map(len, found)) else None
+            for level, found in errors.items()
+        },
+        "cpu_seconds": cpu,
     }
 
 
-def main() -> None:
-    """Score every generator's first ``--worlds`` worlds; print a markdown table."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--worlds", type=int, default=3)
-    parser.add_argument("--tasks", type=int, default=8)
-    parser.add_argument("--demos", type=int, default=3)
-    parser.add_argument("--generators", nargs="+", default=list(GENERATORS), choices=list(GENERATORS))
-    args = parser.parse_args()
+def table(rows: list[dict[str, Any]]) -> str:
+    """Markdown: a row per family, means over its worlds."""
     lines = [
-        "| generator | worlds | Spearman(spread, abs error), tasks | baseline | relative spread, tasks | abs error "
-        "visited / next to a visit / elsewhere | wall s per fit |",
-        "| --- | --- | --- | --- | --- | --- | --- |",
+        "| family | worlds | Pearson | Spearman(spread, abs error) | Spearman(hops to a demo, abs error) | "
+        "baseline: Spearman(spread, abs error) | Spearman(abs(truth − mean), abs error) | Spearman(spread, abs "
+        "difference from a refit) | Spearman(abs error, the refit's abs error) | abs error visited / next to a "
+        "visit / elsewhere | CPU s per fit |",
+        "| --- " * 11 + "|",
     ]
-    for g in args.generators:
-        rows = [score_world(g, k, n_tasks=args.tasks, n_demos=args.demos) for k in range(args.worlds)]
-        for k, r in enumerate(rows):
-            print(g, k, r, flush=True)
+    for family in dict.fromkeys(r["family"] for r in rows):
+        sel = [r for r in rows if r["family"] == family]
 
-        def mean(key: str, rows: list[dict[str, float]] = rows) -> float:
-            return float(np.nanmean([r[key] for r in rows]))
+        def mean(key: str, sel: list[dict[str, Any]] = sel) -> float:
+            return float(np.mean([r[key] for r in sel if r[key] is not None]))
 
         lines.append(
-            f"| {g} | {args.worlds} | {mean('task_rho'):+.2f} | {mean('baseline_rho'):+.2f} | "
-            f"{mean('relative_rho'):+.2f} | "
-            f"{mean(f'error_{VISITED}'):.3f} / {mean(f'error_{NEXT_TO_VISITED}'):.3f} / {mean('error_0.0'):.3f} | "
-            f"{mean('wall_s'):.1f} |"
+            f"| {family} | {len(sel)} | {mean('pearson'):.3f} | {mean('rho_spread'):+.2f} | {mean('rho_hops'):+.2f} "
+            f"| {mean('rho_baseline'):+.2f} | {mean('rho_truth_offset'):+.2f} | {mean('rho_spread_refit'):+.2f} | {mean('rho_error_refit_error'):+.2f} | {mean(f'error_{VISITED}'):.3f} / "
+            f"{mean(f'error_{NEXT_TO_VISITED}'):.3f} / {mean('error_0.0'):.3f} | {mean('cpu_seconds'):.1f} |"
         )
-    print("\n".join(lines))
+    return "\n".join(lines)
+
+
+def main() -> None:
+    """Score every family's first ``--worlds`` worlds; store the rows and print the table."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--worlds", type=int, default=3)
+    parser.add_argument("--families", nargs="+", default=list(ROWS), choices=list(ROWS))
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    run = provenance()
+    rows = []
+    for family in args.families:
+        for k in range(args.worlds):
+            rows.append(score_world(family, k))
+            print(json.dumps(rows[-1]), flush=True)
+    RESULTS.write_text(json.dumps({"provenance": run, "rows": rows}, indent=1) + "\n")
+    print(table(rows))
 
 
 if __name__ == "__main__":

@@ -25,6 +25,21 @@ from metairl_engine.grids import GRAPH_DIMENSIONS, layout_features
 from metairl_engine.mdp import MDP
 from metairl_engine.planning import transition_matrix
 
+COORDINATE_OCTAVES = 2
+"""Octaves of the sinusoids of the coordinates the task networks see (`FitConfig.task_coordinates`,
+`networks.fourier_features`): a goal is
+a bump at one place, which a ReLU MLP builds slowly from raw coordinates (spectral bias) and directly from
+waves down to a quarter of the grid. Chosen on the multi-task objectworld worlds of `benchmarks/FAMILIES.md`
+(world 0, 10 demonstrations, Pearson / EVD÷random: raw 0.44 / 0.32, 2 octaves 0.61 / 0.12, 3 octaves
+0.67 / 0.10; with 3 demonstrations that wander (goal bonus 3), worlds 0 and 2, Pearson 0.48 and 0.31 with 3
+octaves against 0.54 and 0.48 with 2)."""
+
+TASK_COORDINATE_COLUMNS = GRAPH_DIMENSIONS * (1 + 2 * COORDINATE_OCTAVES)
+"""Columns `FitConfig.task_coordinates` adds to the task networks' inputs of an MDP with features: x, y and
+their sine and cosine at each of COORDINATE_OCTAVES octaves (10). A layout of several panels would add its
+channel one-hot too, but the grids that have one (velocity grids) have these coordinates as their features,
+which the fit then leaves as they are."""
+
 LANDMARKS = 64
 """States whose hop distances to every state the graph embedding measures (all of them on smaller MDPs)."""
 

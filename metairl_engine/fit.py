@@ -28,7 +28,7 @@ import torch.nn.functional as F
 
 from metairl_engine.backups import QRows, backup, successor_pairs
 from metairl_engine.config import FitConfig, baseline_column_issues, ensemble_size, sharing_block_count
-from metairl_engine.coordinates import state_coordinates
+from metairl_engine.coordinates import COORDINATE_OCTAVES, state_coordinates
 from metairl_engine.demos import validate_trajectories
 from metairl_engine.errors import Cancelled, InvalidInput, Issue, check
 from metairl_engine.holdout import Steps, split_steps
@@ -285,15 +285,6 @@ def sharing_blocks(mdps: Sequence[MDP], n_blocks: int, *, seed: int) -> list[np.
 def _encode(features: np.ndarray, config: FitConfig) -> torch.Tensor:
     """Network inputs from state features: the raw columns and their Fourier waves (`fourier_octaves`)."""
     return torch.from_numpy(fourier_features(np.ascontiguousarray(features), octaves=config.fourier_octaves))
-
-
-COORDINATE_OCTAVES = 2
-"""Octaves of the sinusoids of the coordinates the task networks see (`networks.fourier_features`): a goal is
-a bump at one place, which a ReLU MLP builds slowly from raw coordinates (spectral bias) and directly from
-waves down to a quarter of the grid. Chosen on the multi-task objectworld worlds of `benchmarks/FAMILIES.md`
-(world 0, 10 demonstrations, Pearson / EVD÷random: raw 0.44 / 0.32, 2 octaves 0.61 / 0.12, 3 octaves
-0.67 / 0.10; with 3 demonstrations that wander (goal bonus 3), worlds 0 and 2, Pearson 0.48 and 0.31 with 3
-octaves against 0.54 and 0.48 with 2)."""
 
 
 def _with_coordinates(
@@ -628,7 +619,7 @@ def member_spread(members: torch.Tensor) -> np.ndarray | None:
     """Per state, the standard deviation across the ensemble's K members (dim 0) of their rewards, each put
     on the ensemble mean's scale first by a least-squares affine fit over the states (a reward's level and
     scale are not identified, so members that differ only so agree); float32 of shape ``members.shape[1:]``,
-    None with K = 1."""
+    None with K = 1. What it estimates is the variability of a fit, not its error (`FitResult`)."""
     if members.shape[0] < 2:
         return None
     centred = members - members.mean(dim=-1, keepdim=True)

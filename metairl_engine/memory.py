@@ -15,7 +15,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 from metairl_engine.config import FitConfig, ensemble_size
-from metairl_engine.coordinates import LANDMARKS
+from metairl_engine.coordinates import LANDMARKS, TASK_COORDINATE_COLUMNS
 
 COORDINATE_COLUMNS = 10
 """Feature columns counted for an MDP without features under ``tabular_inputs="coordinates"``: x and y, and a
@@ -115,7 +115,9 @@ def fit_memory(
     (1: deterministic). Counted, for the meta-IRL method: the loaded inputs (transitions, features and
     their Fourier encoding, trajectories); the VR and baseline networks' parameters with their gradients,
     Adam's moments and the kept copy; the index tensors of the training, held-out and sharing rows (one
-    per network and state with ``sharing_states="all"``); then the larger of one training step (the
+    per network and state with ``sharing_states="all"``), the task networks' inputs including the
+    `TASK_COORDINATE_COLUMNS` of coordinates `FitConfig.task_coordinates` adds to an MDP's features (counted
+    even where the features already are the coordinates and the fit adds none: a few columns too many); then the larger of one training step (the
     activations of one chunk of states forward and backward, Q and its gradient on every row, Adam's
     temporaries) and the final evaluation on every state (Q, values and policies of all networks, and the
     results). With ``method="maxent"``: the inputs, one task's value iteration and the results. Each term
@@ -135,6 +137,8 @@ def fit_memory(
 
     k = ensemble_size(config, n_tasks=t, n_states=s)
     nets = t * k
+    # The task networks of an MDP with features also see its coordinates and their waves.
+    task_columns = TASK_COORDINATE_COLUMNS if config.task_coordinates and n_features is not None else 0
     if n_features is None and config.tabular_inputs == "coordinates":
         # Positions recovered from the MDP (coordinates.py) stand in for features; while they are computed,
         # float64 hop distances to the landmarks, their squares and the positions.
@@ -142,11 +146,11 @@ def fit_memory(
         inputs += LANDMARKS * s * 8 * 3
     tabular = n_features is None
     octave_columns = 1 + 2 * config.fourier_octaves
-    width = s if tabular else (n_features or 0) * octave_columns
+    width = s if tabular else ((n_features or 0) + task_columns) * octave_columns
     base_width = (
         width
-        if tabular or config.baseline_features is None
-        else len(config.baseline_features) * octave_columns
+        if tabular
+        else (len(config.baseline_features) if config.baseline_features else n_features or 0) * octave_columns
     )
     if not tabular:
         # Encoded features and the copies the networks read (VR, baseline), plus the encoding's float64 waves.

@@ -47,9 +47,12 @@ class FitResult:
     ``history`` has one `Progress` per step; ``best_step`` is the step whose parameters were kept (the
     parameters that step evaluated, before its update). ``baseline`` is the baseline network's reward, or
     the mean of the task rewards where no baseline is learned (``sharing="none"``, ``method="maxent"``).
-    ``baseline_spread`` (S,) and ``reward_spread`` (T, S): per state, the standard deviation of the
-    (mean-centred) reward across the ensemble's members, how much members fitted to different folds of
-    the demonstrations disagree there; None where one member was fitted (``ensemble`` 1, ``maxent``).
+    ``baseline_spread`` (S,) and ``reward_spread`` (T, S): per state, the standard deviation of the reward
+    across the ensemble's members, each put on the members' mean scale first (`fit.member_spread`): how much
+    fits from other initial weights and other held-out folds disagree there. It is a variability, not an
+    error bar: it ranks where a refit of another seed moves the reward, weakly, and not where the reward is
+    wrong, since every fit makes nearly the same error (`benchmarks/uncertainty.py`, docs/method.md
+    "Uncertainty per state"). None where one member was fitted (``ensemble`` 1, ``maxent``).
     """
 
     baseline: np.ndarray

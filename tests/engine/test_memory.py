@@ -5,13 +5,18 @@ from __future__ import annotations
 
 import os
 import platform
+from dataclasses import replace
 
+import numpy as np
 import pytest
 import torch
 
 from metairl_engine.config import FitConfig, ensemble_size
+from metairl_engine.coordinates import TASK_COORDINATE_COLUMNS
+from metairl_engine.fit import _Problem
 from metairl_engine.memory import COORDINATE_COLUMNS, FLOAT, PARAMETER_COPIES, fit_memory, retained_heap
 from metairl_engine.networks import StackedMLP
+from tests.engine.helpers import small_grid, soft_demos, task
 
 
 def estimate(config: FitConfig, **sizes: int) -> int:
@@ -86,6 +91,25 @@ def test_an_mdp_without_features_is_counted_with_the_coordinates_the_fit_gives_i
     sizes = {"n_tasks": 3, "n_states": 20_000, "n_actions": 8, "n_steps": 300, "n_mdps": 1}
     one_hot = fit_memory(FitConfig(tabular_inputs="one_hot"), n_features=None, **sizes)
     coordinates = fit_memory(FitConfig(), n_features=None, **sizes)
-    assert coordinates.networks == fit_memory(FitConfig(), n_features=COORDINATE_COLUMNS, **sizes).networks
+    # as if the MDP had the coordinates as features (the task networks are not given them twice)
+    as_features = fit_memory(FitConfig(task_coordinates=False), n_features=COORDINATE_COLUMNS, **sizes)
+    assert coordinates.networks == as_features.networks
     assert coordinates.networks < one_hot.networks / 100  # no embedding row per state and network
-    assert coordinates.inputs > fit_memory(FitConfig(), n_features=COORDINATE_COLUMNS, **sizes).inputs
+    assert coordinates.inputs > as_features.inputs
+
+
+def test_task_coordinates_are_counted_as_the_columns_the_fit_adds_to_the_task_networks_inputs() -> None:
+    mdp = replace(small_grid(size=5), features=np.random.default_rng(0).random((25, 3)).astype(np.float32))
+    tasks = [task(mdp, soft_demos(mdp, np.arange(25.0), starts=np.arange(25), length=4, seed=0))]
+    config = FitConfig(fourier_octaves=1)
+    problem = _Problem(tasks, config)
+    octave_columns = 1 + 2 * config.fourier_octaves
+    assert problem.features is not None
+    assert problem.features.shape[1] == (3 + TASK_COORDINATE_COLUMNS) * octave_columns
+    sizes = {"n_tasks": 1, "n_states": 25, "n_actions": 4, "n_features": 3, "n_steps": 100, "n_mdps": 1}
+    with_coordinates = fit_memory(config, **sizes)
+    without = fit_memory(replace(config, task_coordinates=False), **sizes)
+    # every task network's first layer reads the added columns: one weight per column and hidden unit
+    first_layer = problem.n_nets * TASK_COORDINATE_COLUMNS * octave_columns * config.hidden[0]
+    assert with_coordinates.networks - without.networks == PARAMETER_COPIES * first_layer * FLOAT
+    assert with_coordinates.inputs > without.inputs

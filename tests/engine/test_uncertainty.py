@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 
 from metairl_engine import FitConfig, Trajectory
 from metairl_engine.evidence import NEXT_TO_VISITED, VISITED, evidence, tasks_evidence
-from metairl_engine.fit import TaskData, fit
+from metairl_engine.fit import TaskData, fit, member_spread
 from metairl_engine.grids import grid_mdp
 
 SIZE = 6
@@ -64,3 +65,18 @@ def test_the_baselines_evidence_is_the_most_any_task_gives() -> None:
     base, per_task = tasks_evidence([TaskData(MDP, a), TaskData(MDP, b)])
     np.testing.assert_array_equal(base, np.maximum(per_task[0], per_task[1]))
     assert base[0] == VISITED and base[SIZE * SIZE - 1] == VISITED and per_task[0][SIZE * SIZE - 1] == 0
+
+
+def test_members_that_differ_only_in_level_and_scale_have_no_spread() -> None:
+    shape = torch.randn(1, 3, 20, generator=torch.Generator().manual_seed(0))
+    members = torch.cat([shape, 2.0 * shape + 1.0, 0.5 * shape - 3.0, -shape])  # (4 members, 3 tasks, 20)
+    spread = member_spread(members)
+    assert spread is not None and spread.shape == (3, 20)
+    np.testing.assert_allclose(spread, 0.0, atol=1e-5)
+
+
+def test_the_spread_is_on_the_scale_of_the_members_mean() -> None:
+    members = torch.randn(4, 2, 30, generator=torch.Generator().manual_seed(1))
+    spread, scaled = member_spread(members), member_spread(10.0 * members + 5.0)
+    assert spread is not None and scaled is not None and spread.max() > 0.1
+    np.testing.assert_allclose(scaled, 10.0 * spread, rtol=1e-4, atol=1e-5)
