@@ -343,3 +343,23 @@ def test_a_request_finding_every_connection_busy_is_503(
         assert response.status_code == 503 and response.headers["retry-after"] == "1"
         assert response.headers["content-type"].startswith("application/problem+json")
         assert client.get("/v1/mdps", headers=auth).status_code == 200
+
+
+def test_a_quiet_stream_sends_keep_alive_comments_and_ends_after_its_longest_time(
+    settings: Settings, api_key: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A running job's stream stays open without events, with comment lines, until ``events_stream_max_s``."""
+    monkeypatch.setattr("service.api.sse.KEEPALIVE_S", 0.2)
+    auth = {"Authorization": f"Bearer {api_key}"}
+    app = create_app(settings.model_copy(update={"events_stream_max_s": 1.0, "events_poll_s": 0.1}))
+    try:
+        with TestClient(app) as client:
+            job_id = running_job(app, client, auth)
+            started = time.monotonic()
+            response = client.get(f"/v1/jobs/{job_id}/events", headers=auth | SSE)
+            took = time.monotonic() - started
+    finally:
+        app.state.engine.dispose()
+    assert response.status_code == 200 and 1.0 <= took < 5.0
+    assert response.text.count(": keep-alive\n\n") >= 3
+    assert [m["data"]["status"] for m in parse_sse(response.text)] == ["queued", "running"]
