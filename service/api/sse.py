@@ -5,8 +5,9 @@ only sleeps between them) and yields each new event with its ``id``, ``event`` a
 object as the JSON list's items); it ends after the job's terminal status event — or, when resumed after it
 with ``Last-Event-ID``, at once. A stream stays open at most ``events_stream_max_s``; the client then
 reconnects with the last id it saw. `stream_response` wraps it in sse-starlette's `EventSourceResponse`,
-which writes the messages, sends a ``: keep-alive`` comment every `KEEPALIVE_S` and ends the generator as
-soon as the client disconnects or the server shuts down.
+which writes the messages, sends a ``: keep-alive`` comment every `KEEPALIVE_S`, ends the generator as soon
+as the client disconnects, and on the server's shutdown sets an event the generator ends on (within
+`SHUTDOWN_GRACE_S`), so the response ends complete and the client resumes elsewhere.
 
 A stream holds no database connection between its polls (each poll checks one out and returns it), and
 each API key may hold at most ``events_max_streams_per_key`` streams open in one process (`StreamSlots`);
@@ -15,7 +16,6 @@ a poll that finds the database gone or every connection busy ends the stream, an
 
 from __future__ import annotations
 
-import asyncio
 import hashlib
 import json
 import threading
@@ -23,6 +23,7 @@ import time
 from collections import Counter
 from collections.abc import AsyncIterator
 
+import anyio
 from sqlalchemy.exc import OperationalError
 from sqlalchemy.exc import TimeoutError as PoolTimeout
 from sqlalchemy.orm import Session, sessionmaker
@@ -42,6 +43,8 @@ KEEPALIVE_S = 10.0
 """A comment line this often, so proxies keep a quiet stream open."""
 RETRY_MS = 2000
 """The reconnection delay suggested to browsers (the ``retry:`` field)."""
+SHUTDOWN_GRACE_S = 2.0
+"""How long a stream may take to end by itself once the server shuts down, before it is cancelled."""
 SEP = "\n"
 """The line separator of the messages (sse-starlette's default is CRLF; the documented examples use LF)."""
 
@@ -124,12 +127,15 @@ async def job_events(
     after_id: int,
     poll_s: float,
     max_s: float,
+    shutdown: anyio.Event,
     slot: Slot | None = None,
 ) -> AsyncIterator[ServerSentEvent]:
-    """The messages of the job's events after ``after_id``, until its terminal status (or ``max_s``, or a
-    database failure: the client reconnects after ``retry``); `slot` is released when it ends."""
+    """The messages of the job's events after ``after_id``, until its terminal status (or ``max_s``, a
+    database failure or ``shutdown``: the client reconnects after ``retry``); `slot` is released when it ends."""
     try:
-        async for event in _events(make_session, job_id, after_id=after_id, poll_s=poll_s, max_s=max_s):
+        async for event in _events(
+            make_session, job_id, after_id=after_id, poll_s=poll_s, max_s=max_s, shutdown=shutdown
+        ):
             yield event
     finally:
         if slot is not None:
@@ -137,7 +143,13 @@ async def job_events(
 
 
 async def _events(
-    make_session: sessionmaker[Session], job_id: str, *, after_id: int, poll_s: float, max_s: float
+    make_session: sessionmaker[Session],
+    job_id: str,
+    *,
+    after_id: int,
+    poll_s: float,
+    max_s: float,
+    shutdown: anyio.Event,
 ) -> AsyncIterator[ServerSentEvent]:
     """`job_events` without the slot."""
     yield ServerSentEvent(retry=RETRY_MS, sep=SEP)
@@ -158,7 +170,10 @@ async def _events(
             return  # deleted, or resumed after the terminal event
         if time.monotonic() >= deadline:
             return
-        await asyncio.sleep(poll_s)
+        with anyio.move_on_after(poll_s):
+            await shutdown.wait()
+        if shutdown.is_set():
+            return  # the server is shutting down
 
 
 def stream_response(
@@ -171,9 +186,14 @@ def stream_response(
     slot: Slot,
 ) -> EventSourceResponse:
     """The job's event stream as a response; the slot is given back when it ends, however it ends."""
-    events = job_events(make_session, job_id, after_id=after_id, poll_s=poll_s, max_s=max_s, slot=slot)
+    shutdown = anyio.Event()
+    events = job_events(
+        make_session, job_id, after_id=after_id, poll_s=poll_s, max_s=max_s, slot=slot, shutdown=shutdown
+    )
     return EventSourceResponse(
         events,
+        shutdown_event=shutdown,
+        shutdown_grace_period=SHUTDOWN_GRACE_S,
         headers={"Cache-Control": "no-cache"},
         ping=KEEPALIVE_S,
         ping_message_factory=keep_alive,
