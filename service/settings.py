@@ -67,14 +67,14 @@ class Settings(BaseSettings):
     Counted in each API process: with N processes a key gets up to N times this."""
 
     rate_limit_per_key_burst: int = 400
-    """Requests one API key may make at once above ``rate_limit_per_key`` (its bucket's size)."""
+    """Requests one API key may make at once: the limit is this many in a sliding window of burst / rate seconds."""
 
     rate_limit_per_ip: float = 10.0
     """Failed authentications (401) a second one client address may cause, sustained (0: no limit); while it is
     over, every `/v1` request from the address gets 429 with ``Retry-After``, so a key guesser is slowed down."""
 
     rate_limit_per_ip_burst: int = 20
-    """Failed authentications one client address may cause at once above ``rate_limit_per_ip``."""
+    """Failed authentications one client address may cause at once (this many in burst / rate seconds)."""
 
     api_key_cache_s: float = 0.0
     """How long an API process trusts a key the database confirmed; a revoked key is refused within this (0: always ask)."""

@@ -14,8 +14,9 @@ the readout a clinician checks the learned rewards against (docs/api.md, "Motion
 all lengths in the units of the uploaded x, y, times in those of t. A movement starts where the COP rests
 before it (the mean of the segment's first ``rest_s``); its onset is the first sample farther from there than
 ``onset_fraction`` of its peak distance, its end the last such sample. Per direction, every descriptor is
-summarised by its mean over repetitions with a 95 % percentile-bootstrap interval over repetitions (seeded);
-`compare` gives b minus a per direction with intervals from resampling both sides.
+summarised by its mean over repetitions with a 95 % percentile-bootstrap interval over repetitions (seeded,
+``scipy.stats.bootstrap`` through `motion.bootstrap`, scipy imported when an interval is drawn); `compare`
+gives b minus a per direction with intervals from resampling both sides.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from metairl_engine.grids import DIRECTION_NAMES, DIRECTIONS
+from metairl_engine.motion.bootstrap import percentile_interval
 from metairl_engine.motion.recording import Recording, SegmentSettings, segment
 
 DESCRIPTORS = ("peak_reach", "path_length", "deviation", "time_to_peak_s", "mean_speed")
@@ -120,13 +122,44 @@ def movements(
     return out
 
 
-def _interval(values: np.ndarray, draws: np.ndarray) -> dict[str, float | None]:
-    """Mean and 95 % percentile-bootstrap interval of the mean; low/high None with fewer than 2 values."""
-    mean = float(values.mean())
-    if len(values) < 2:
-        return {"mean": mean, "low": None, "high": None}
-    low, high = np.percentile(values[draws].mean(axis=1), [2.5, 97.5])
-    return {"mean": mean, "low": float(low), "high": float(high)}
+def _values(group: Sequence[Movement]) -> np.ndarray:
+    """The descriptors of a direction's repetitions, (descriptors, repetitions) in `DESCRIPTORS` order."""
+    return np.array([[m.value(d) for m in group] for d in DESCRIPTORS], dtype=np.float64)
+
+
+def _means(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Each sample's mean over repetitions, stacked: (samples, descriptors[, resamples])."""
+    return np.stack(np.broadcast_arrays(*(np.mean(s, axis=axis) for s in samples)))
+
+
+def _differences(*pairs: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Mean of b minus mean of a for the samples a₀, b₀, a₁, b₁, …, stacked: (pairs, descriptors[, …])."""
+    means = _means(*pairs, axis=axis)
+    return means[1::2] - means[0::2]
+
+
+def _intervals(
+    estimate: np.ndarray, interval: tuple[np.ndarray, np.ndarray] | None
+) -> dict[str, dict[str, float | None]]:
+    """Per descriptor ``{"mean", "low", "high"}`` of one direction; low/high None without an interval."""
+    return {
+        d: {
+            "mean": float(estimate[i]),
+            "low": None if interval is None else float(interval[0][i]),
+            "high": None if interval is None else float(interval[1][i]),
+        }
+        for i, d in enumerate(DESCRIPTORS)
+    }
+
+
+def _row(
+    estimates: np.ndarray, interval: tuple[np.ndarray, np.ndarray] | None, j: int, resampled: bool
+) -> dict[str, dict[str, float | None]]:
+    """`_intervals` of direction ``j`` of the (directions, descriptors) results; no interval unless it had
+    repetitions to resample."""
+    return _intervals(
+        estimates[j], None if interval is None or not resampled else (interval[0][j], interval[1][j])
+    )
 
 
 def _by_direction(moves: Sequence[Movement]) -> dict[str, list[Movement]]:
@@ -143,14 +176,15 @@ def summarise(moves: Sequence[Movement], settings: KinematicSettings = Kinematic
     """The motion summary without the route's fields: ``{"directions": [{"direction", "n_segments",
     "peak_reach": {"mean", "low", "high"}, "path_length": …, "deviation": …, "time_to_peak_s": …,
     "mean_speed": …}, …]}`` in `DIRECTION_NAMES` order, only directions with movements."""
+    groups = list(_by_direction(moves).items())
+    values = [_values(group) for _, group in groups]
     rng = np.random.default_rng(settings.seed)
-    rows = []
-    for name, group in _by_direction(moves).items():
-        draws = rng.integers(0, len(group), size=(settings.n_boot, len(group)))
-        row: dict[str, Any] = {"direction": name, "n_segments": len(group)}
-        for d in DESCRIPTORS:
-            row[d] = _interval(np.array([m.value(d) for m in group]), draws)
-        rows.append(row)
+    interval = percentile_interval(values, _means, n_resamples=settings.n_boot, rng=rng) if values else None
+    means = _means(*values) if values else np.empty((0, len(DESCRIPTORS)))
+    rows = [
+        {"direction": name, "n_segments": len(group)} | _row(means, interval, j, len(group) > 1)
+        for j, (name, group) in enumerate(groups)
+    ]
     return {"directions": rows}
 
 
@@ -174,25 +208,24 @@ def compare(
     """b minus a per direction and descriptor: ``{"directions": [{"direction", "n_a", "n_b",
     "peak_reach_diff": {"mean", "low", "high"}, …}], "a": summarise(a), "b": summarise(b)}`` over the
     directions both sides have; the interval resamples each side's repetitions independently."""
-    rng = np.random.default_rng(settings.seed)
     groups_a, groups_b = _by_direction(a), _by_direction(b)
+    both = [
+        (name, groups_a[name], groups_b[name])
+        for name in DIRECTION_NAMES
+        if name in groups_a and name in groups_b
+    ]
+    pairs = [v for _, ga, gb in both for v in (_values(ga), _values(gb))]
+    rng = np.random.default_rng(settings.seed)
+    interval = (
+        percentile_interval(pairs, _differences, n_resamples=settings.n_boot, rng=rng) if pairs else None
+    )
+    diffs = _differences(*pairs) if pairs else np.empty((0, len(DESCRIPTORS)))
     rows = []
-    for name in DIRECTION_NAMES:
-        if name not in groups_a or name not in groups_b:
-            continue
-        ga, gb = groups_a[name], groups_b[name]
-        draws_a = rng.integers(0, len(ga), size=(settings.n_boot, len(ga)))
-        draws_b = rng.integers(0, len(gb), size=(settings.n_boot, len(gb)))
-        row: dict[str, Any] = {"direction": name, "n_a": len(ga), "n_b": len(gb)}
-        for d in DESCRIPTORS:
-            va, vb = np.array([m.value(d) for m in ga]), np.array([m.value(d) for m in gb])
-            diff: dict[str, float | None] = {"mean": float(vb.mean() - va.mean()), "low": None, "high": None}
-            if len(va) > 1 or len(vb) > 1:
-                boot = vb[draws_b].mean(axis=1) - va[draws_a].mean(axis=1)
-                low, high = np.percentile(boot, [2.5, 97.5])
-                diff["low"], diff["high"] = float(low), float(high)
-            row[f"{d}_diff"] = diff
-        rows.append(row)
+    for j, (name, ga, gb) in enumerate(both):
+        row = _row(diffs, interval, j, len(ga) > 1 or len(gb) > 1)
+        rows.append(
+            {"direction": name, "n_a": len(ga), "n_b": len(gb)} | {f"{d}_diff": v for d, v in row.items()}
+        )
     return {"directions": rows, "a": summarise(a, settings), "b": summarise(b, settings)}
 
 

@@ -20,6 +20,7 @@ from typing import Literal
 import numpy as np
 
 from metairl_engine.grids import DIRECTION_NAMES, velocity_coords
+from metairl_engine.motion.bootstrap import percentile_interval
 
 
 def ring_centred(
@@ -141,11 +142,18 @@ def agreement(
     null = _spearman_rows(ranked, means[orders])  # ρ of the learned ranks with the reach shuffled
     p_pos = float((null >= rho - 1e-12).mean())
     p_neg = float((null <= rho + 1e-12).mean())
-    rng = np.random.default_rng(seed)
-    boot = np.stack([r[rng.integers(0, len(r), size=(n_boot, len(r)))].mean(axis=1) for r in reps], axis=1)
-    low, high = (float(q) for q in np.quantile(_spearman_rows(ranked, boot), [ALPHA / 2, 1 - ALPHA / 2]))
-    lows = np.array([np.quantile(b, ALPHA / 2) for b in boot.T])
-    highs = np.array([np.quantile(b, 1 - ALPHA / 2) for b in boot.T])
+
+    def rho_and_means(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
+        """ρ of the learned ranks with the directions' mean reach, then those means: (1 + n, resamples)."""
+        reach_means = np.stack(np.broadcast_arrays(*(r.mean(axis=axis) for r in samples)), axis=-1)
+        return np.concatenate([_spearman_rows(ranked, reach_means)[None], np.moveaxis(reach_means, -1, 0)])
+
+    interval = percentile_interval(
+        reps, rho_and_means, n_resamples=n_boot, rng=np.random.default_rng(seed), confidence=1 - ALPHA
+    )
+    bounds = (np.r_[rho, means], np.r_[rho, means]) if interval is None else interval  # nothing to resample
+    low, high = float(bounds[0][0]), float(bounds[1][0])
+    lows, highs = bounds[0][1:], bounds[1][1:]
     found = Agreement("undetermined", "", rho, p_pos, p_neg, low, high, n_directions=n)
     stats = f"Spearman ρ = {rho:+.2f} over {n} directions, bootstrap 95 % interval [{low:+.2f}, {high:+.2f}]"
     top, bottom = int(np.argmax(values)), int(np.argmin(values))

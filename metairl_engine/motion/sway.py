@@ -26,6 +26,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from metairl_engine.errors import Issue, check
+from metairl_engine.motion.bootstrap import percentile_interval
 
 ELLIPSE_P = 0.95
 POWER_FRACTION = 0.95
@@ -306,25 +307,20 @@ def bootstrap_intervals(
     names: list[str], samples: tuple[np.ndarray, ...], statistic: Callable[..., np.ndarray]
 ) -> dict[str, Interval]:
     """``statistic`` of (measures, trials) ``samples`` per measure with a 95 % percentile interval from
-    ``scipy.stats.bootstrap`` (trials resampled within each sample, seeded); no interval below two trials."""
-    from scipy import stats
-
+    ``scipy.stats.bootstrap`` (`motion.bootstrap`: trials resampled within each sample, seeded); no interval below
+    two trials."""
     estimate = statistic(*samples)
-    if min(s.shape[1] for s in samples) < 2:
+    rng = np.random.default_rng(SEED)
+    interval = (
+        None
+        if min(s.shape[1] for s in samples) < 2
+        else percentile_interval(samples, statistic, n_resamples=N_RESAMPLES, rng=rng, confidence=CONFIDENCE)
+    )
+    if interval is None:
         return {m: Interval(float(e), None, None) for m, e in zip(names, estimate, strict=True)}
-    ci = stats.bootstrap(
-        samples,
-        statistic,
-        axis=-1,
-        vectorized=True,
-        confidence_level=CONFIDENCE,
-        n_resamples=N_RESAMPLES,
-        method="percentile",
-        rng=np.random.default_rng(SEED),
-    ).confidence_interval
     return {
         m: Interval(float(e), float(lo), float(hi))
-        for m, e, lo, hi in zip(names, estimate, ci.low, ci.high, strict=True)
+        for m, e, lo, hi in zip(names, estimate, *interval, strict=True)
     }
 
 

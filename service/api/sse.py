@@ -1,10 +1,13 @@
-"""A job's event log as Server-Sent Events (docs/api.md, "Following a job live").
+"""A job's event log as Server-Sent Events (docs/api.md, "Following a job live"), sent by sse-starlette.
 
-The stream polls the database every ``events_poll_s`` (each read runs in the thread pool, the event loop
-only sleeps between them), sends each new event as ``id:``/``event:``/``data:`` (JSON, the same object as
-the JSON list's items), and ends after the job's terminal status event — or, when resumed after it with
-``Last-Event-ID``, at once. A stream stays open at most ``events_stream_max_s``; the client then
-reconnects with the last id it saw. A comment line every few seconds keeps proxies from closing it.
+`job_events` polls the database every ``events_poll_s`` (each read runs in the thread pool, the event loop
+only sleeps between them) and yields each new event with its ``id``, ``event`` and JSON ``data`` (the same
+object as the JSON list's items); it ends after the job's terminal status event — or, when resumed after it
+with ``Last-Event-ID``, at once. A stream stays open at most ``events_stream_max_s``; the client then
+reconnects with the last id it saw. `stream_response` wraps it in sse-starlette's `EventSourceResponse`,
+which writes the messages, sends a ``: keep-alive`` comment every `KEEPALIVE_S`, ends the generator as soon
+as the client disconnects, and on the server's shutdown sets an event the generator ends on (within
+`SHUTDOWN_GRACE_S`), so the response ends complete and the client resumes elsewhere.
 
 A stream holds no database connection between its polls (each poll checks one out and returns it), and
 each API key may hold at most ``events_max_streams_per_key`` streams open in one process (`StreamSlots`);
@@ -13,7 +16,6 @@ a poll that finds the database gone or every connection busy ends the stream, an
 
 from __future__ import annotations
 
-import asyncio
 import hashlib
 import json
 import threading
@@ -21,9 +23,12 @@ import time
 from collections import Counter
 from collections.abc import AsyncIterator
 
+import anyio
 from sqlalchemy.exc import OperationalError
 from sqlalchemy.exc import TimeoutError as PoolTimeout
 from sqlalchemy.orm import Session, sessionmaker
+from sse_starlette import EventSourceResponse, ServerSentEvent
+from starlette.background import BackgroundTask
 from starlette.concurrency import run_in_threadpool
 
 from service.domain.jobs import JobEventOut
@@ -35,9 +40,13 @@ MEDIA_TYPE = "text/event-stream"
 BATCH = 500
 """Most events read in one poll (a long log streams in several reads)."""
 KEEPALIVE_S = 10.0
-"""A comment line after this long without an event."""
+"""A comment line this often, so proxies keep a quiet stream open."""
 RETRY_MS = 2000
 """The reconnection delay suggested to browsers (the ``retry:`` field)."""
+SHUTDOWN_GRACE_S = 2.0
+"""How long a stream may take to end by itself once the server shuts down, before it is cancelled."""
+SEP = "\n"
+"""The line separator of the messages (sse-starlette's default is CRLF; the documented examples use LF)."""
 
 
 class Slot:
@@ -89,10 +98,15 @@ def parse_last_event_id(value: str | None) -> int:
         return 0
 
 
-def format_event(event: JobEventOut) -> str:
+def message(event: JobEventOut) -> ServerSentEvent:
     """One SSE message: ``id``, ``event`` (``status`` or ``progress``) and the event as JSON ``data``."""
     data = json.dumps(event.model_dump(mode="json", exclude_none=True), separators=(",", ":"))
-    return f"id: {event.id}\nevent: {event.kind}\ndata: {data}\n\n"
+    return ServerSentEvent(data, id=str(event.id), event=event.kind, sep=SEP)
+
+
+def keep_alive() -> ServerSentEvent:
+    """The comment line sent while the stream is quiet."""
+    return ServerSentEvent(comment="keep-alive", sep=SEP)
 
 
 def _read(
@@ -113,44 +127,76 @@ async def job_events(
     after_id: int,
     poll_s: float,
     max_s: float,
+    shutdown: anyio.Event,
     slot: Slot | None = None,
-) -> AsyncIterator[str]:
-    """The SSE text of the job's events after ``after_id``, until its terminal status (or ``max_s``, or a
-    database failure: the client reconnects after ``retry``); `slot` is released when it ends."""
+) -> AsyncIterator[ServerSentEvent]:
+    """The messages of the job's events after ``after_id``, until its terminal status (or ``max_s``, a
+    database failure or ``shutdown``: the client reconnects after ``retry``); `slot` is released when it ends."""
     try:
-        async for text in _events(make_session, job_id, after_id=after_id, poll_s=poll_s, max_s=max_s):
-            yield text
+        async for event in _events(
+            make_session, job_id, after_id=after_id, poll_s=poll_s, max_s=max_s, shutdown=shutdown
+        ):
+            yield event
     finally:
         if slot is not None:
             slot.release()
 
 
 async def _events(
-    make_session: sessionmaker[Session], job_id: str, *, after_id: int, poll_s: float, max_s: float
-) -> AsyncIterator[str]:
+    make_session: sessionmaker[Session],
+    job_id: str,
+    *,
+    after_id: int,
+    poll_s: float,
+    max_s: float,
+    shutdown: anyio.Event,
+) -> AsyncIterator[ServerSentEvent]:
     """`job_events` without the slot."""
-    yield f"retry: {RETRY_MS}\n\n"
+    yield ServerSentEvent(retry=RETRY_MS, sep=SEP)
     deadline = time.monotonic() + max_s
-    quiet_since = time.monotonic()
     while True:
         try:
             status, events = await run_in_threadpool(_read, make_session, job_id, after_id)
         except (OperationalError, PoolTimeout):
             return  # the database is gone or busy: end here, the client resumes with Last-Event-ID
         for event in events:
-            yield format_event(event)
+            yield message(event)
             after_id = event.id
             if event.kind == "status" and event.status is not None and JobStatus(event.status).is_terminal:
                 return
-        if events:
-            quiet_since = time.monotonic()
-            if len(events) == BATCH:
-                continue  # more are waiting: read on without sleeping
+        if len(events) == BATCH:
+            continue  # more are waiting: read on without sleeping
         if status is None or (status.is_terminal and not events):
             return  # deleted, or resumed after the terminal event
         if time.monotonic() >= deadline:
             return
-        if time.monotonic() - quiet_since >= KEEPALIVE_S:
-            quiet_since = time.monotonic()
-            yield ": keep-alive\n\n"
-        await asyncio.sleep(poll_s)
+        with anyio.move_on_after(poll_s):
+            await shutdown.wait()
+        if shutdown.is_set():
+            return  # the server is shutting down
+
+
+def stream_response(
+    make_session: sessionmaker[Session],
+    job_id: str,
+    *,
+    after_id: int,
+    poll_s: float,
+    max_s: float,
+    slot: Slot,
+) -> EventSourceResponse:
+    """The job's event stream as a response; the slot is given back when it ends, however it ends."""
+    shutdown = anyio.Event()
+    events = job_events(
+        make_session, job_id, after_id=after_id, poll_s=poll_s, max_s=max_s, slot=slot, shutdown=shutdown
+    )
+    return EventSourceResponse(
+        events,
+        shutdown_event=shutdown,
+        shutdown_grace_period=SHUTDOWN_GRACE_S,
+        headers={"Cache-Control": "no-cache"},
+        ping=KEEPALIVE_S,
+        ping_message_factory=keep_alive,
+        sep=SEP,
+        background=BackgroundTask(slot.release),
+    )

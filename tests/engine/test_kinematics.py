@@ -144,3 +144,15 @@ def test_comparison_figure_states_a_sides_verdict_on_its_learned_readout_under_t
     )
     height = {name: Image.open(BytesIO(png)).size[1] for name, png in (("plain", plain), ("judged", judged))}
     assert height["judged"] > height["plain"]
+
+
+def test_a_side_with_one_repetition_is_held_while_the_other_is_resampled() -> None:
+    one, three = moves("left", [0.2]), moves("left", [0.40, 0.42, 0.47])
+    (row,) = compare(one, three)["directions"]
+    alone = summarise(three)["directions"][0]["peak_reach"]  # the same seed draws the same resamples of b
+    diff = row["peak_reach_diff"]
+    assert diff["low"] == pytest.approx(alone["low"] - 0.2)
+    assert diff["high"] == pytest.approx(alone["high"] - 0.2)
+    assert diff["low"] < diff["high"]
+    (single,) = compare(one, moves("left", [0.5]))["directions"]
+    assert single["peak_reach_diff"] == {"mean": pytest.approx(0.3), "low": None, "high": None}

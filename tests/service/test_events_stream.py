@@ -1,12 +1,18 @@
-"""`GET /v1/jobs/{id}/events` as Server-Sent Events: replay and end, resume with Last-Event-ID, other labs."""
+"""`GET /v1/jobs/{id}/events` as Server-Sent Events: replay and end, resume with Last-Event-ID, other labs, keep-alive,
+slots, and the end of a stream when its API process shuts down."""
 
 from __future__ import annotations
 
 import contextlib
 import json
+import os
+import signal
+import subprocess
+import sys
 import time
 from collections.abc import Iterator
 from datetime import UTC, datetime
+from pathlib import Path
 from typing import Any
 
 import httpx
@@ -20,10 +26,12 @@ from service.settings import Settings
 from service.store.models.base import utcnow
 from service.store.models.job_status import JobStatus
 from service.store.models.jobs import JobEvent
+from tests.served import free_port
 from tests.service.helpers import add_demonstrations, created, make_task
 from tests.service.live import serving
 
 SSE = {"Accept": "text/event-stream"}
+REPO = Path(__file__).resolve().parents[2]
 
 
 def finished_job(app: FastAPI, client: TestClient, auth: dict[str, str]) -> str:
@@ -343,3 +351,64 @@ def test_a_request_finding_every_connection_busy_is_503(
         assert response.status_code == 503 and response.headers["retry-after"] == "1"
         assert response.headers["content-type"].startswith("application/problem+json")
         assert client.get("/v1/mdps", headers=auth).status_code == 200
+
+
+def test_a_quiet_stream_sends_keep_alive_comments_and_ends_after_its_longest_time(
+    settings: Settings, api_key: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A running job's stream stays open without events, with comment lines, until ``events_stream_max_s``."""
+    monkeypatch.setattr("service.api.sse.KEEPALIVE_S", 0.2)
+    auth = {"Authorization": f"Bearer {api_key}"}
+    app = create_app(settings.model_copy(update={"events_stream_max_s": 1.0, "events_poll_s": 0.1}))
+    try:
+        with TestClient(app) as client:
+            job_id = running_job(app, client, auth)
+            started = time.monotonic()
+            response = client.get(f"/v1/jobs/{job_id}/events", headers=auth | SSE)
+            took = time.monotonic() - started
+    finally:
+        app.state.engine.dispose()
+    assert response.status_code == 200 and 1.0 <= took < 5.0
+    assert response.text.count(": keep-alive\n\n") >= 3
+    assert [m["data"]["status"] for m in parse_sse(response.text)] == ["queued", "running"]
+
+
+def test_an_api_process_shutting_down_ends_its_open_streams_complete_and_exits_at_once(
+    app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
+) -> None:
+    job_id = running_job(app, client, auth)
+    port = free_port()
+    env = os.environ | {
+        "METAIRL_DATABASE_URL": settings.resolved_database_url,
+        "METAIRL_DATA_DIR": str(settings.data_dir),
+    }
+    command = [
+        "uvicorn",
+        "--factory",
+        "service.api.app:create_app",
+        "--port",
+        str(port),
+        "--log-level",
+        "warning",
+    ]
+    server = subprocess.Popen([sys.executable, "-m", *command], cwd=REPO, env=env)
+    try:
+        url = f"http://127.0.0.1:{port}"
+        deadline = time.monotonic() + 30
+        while server.poll() is None and time.monotonic() < deadline:
+            with contextlib.suppress(httpx.TransportError):
+                if httpx.get(f"{url}/healthz").status_code == 200:
+                    break
+            time.sleep(0.1)
+        with httpx.stream("GET", f"{url}/v1/jobs/{job_id}/events", headers=auth | SSE, timeout=5) as stream:
+            lines = stream.iter_lines()
+            assert next(lines) == "retry: 2000"  # the stream is open
+            server.send_signal(signal.SIGTERM)
+            sent = time.monotonic()
+            rest = list(lines)  # a body cut off, or a stream left open past the timeout, raises here
+        server.wait(timeout=10)
+        assert time.monotonic() - sent < 5
+        assert [m["data"]["status"] for m in parse_sse("\n".join(rest))] == ["queued", "running"]
+    finally:
+        if server.poll() is None:
+            server.kill()

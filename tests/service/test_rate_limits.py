@@ -1,10 +1,11 @@
 """Rate limits: a key guesser gets 429 with `Retry-After` after a burst of 401s (a key accepted before goes on
-working from its address), a key over its rate gets 429, a key under it never does, and each limit is a
-setting (0 turns it off)."""
+working from its address), a key over its rate gets 429 and is let in again after `Retry-After`, a key under it
+never does, and each limit is a setting (0 turns it off)."""
 
 from __future__ import annotations
 
 import secrets
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -12,11 +13,11 @@ from fastapi.testclient import TestClient
 
 from metairl_cli.keys import create_key
 from service.api.app import create_app
-from service.api.ratelimit import TokenBuckets
+from service.api.ratelimit import window
 from service.settings import Settings
 
 SLOW = 0.01
-"""Tokens a second low enough that no bucket refills while a test runs (one token every 100 s)."""
+"""A rate low enough that no window lets a request in again while a test runs (one every 100 s)."""
 
 
 @contextmanager
@@ -94,13 +95,21 @@ def test_a_rate_of_zero_turns_each_limit_off(settings: Settings) -> None:
         assert {client.get("/v1/mdps", headers=bearer(key)).status_code for _ in range(30)} == {200}
 
 
-def test_a_bucket_refills_at_its_rate_up_to_its_burst() -> None:
-    now = [0.0]
-    buckets = TokenBuckets(2.0, 3, clock=lambda: now[0])
-    assert [buckets.take("a") for _ in range(3)] == [0.0, 0.0, 0.0]
-    assert buckets.take("a") == 0.5 and buckets.wait("a") == 0.5  # a refusal takes nothing
-    assert buckets.take("b") == 0.0  # buckets are per name
-    now[0] = 0.5
-    assert buckets.take("a") == 0.0 and buckets.take("a") == 0.5
-    now[0] = 100.0
-    assert [buckets.take("a") for _ in range(4)] == [0.0, 0.0, 0.0, 0.5]  # never more than the burst
+def test_a_rate_and_its_burst_become_the_burst_in_a_window_of_burst_over_rate_seconds() -> None:
+    def amount_and_seconds(rate: float, burst: int) -> tuple[int, int]:
+        item = window(rate, burst)
+        return item.amount, item.get_expiry()
+
+    assert amount_and_seconds(200.0, 400) == (400, 2)  # the per-key default
+    assert amount_and_seconds(10.0, 20) == (20, 2)  # the per-address default
+    assert amount_and_seconds(SLOW, 5) == (5, 500)
+    assert amount_and_seconds(3.0, 10) == (10, 3)  # whole seconds: the nearest window
+    assert amount_and_seconds(200.0, 50) == (200, 1)  # a burst below a second's requests is raised to them
+
+
+def test_a_refused_key_is_let_in_again_after_its_retry_after(settings: Settings) -> None:
+    with limited(settings, rate_limit_per_key=1.0, rate_limit_per_key_burst=1) as (client, key):
+        answers = [client.get("/v1/mdps", headers=bearer(key)) for _ in range(3)]
+        refused = next(a for a in answers if a.status_code == 429)
+        time.sleep(int(refused.headers["retry-after"]))
+        assert client.get("/v1/mdps", headers=bearer(key)).status_code == 200

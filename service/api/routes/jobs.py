@@ -9,15 +9,14 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, Header, Query, Request, Response, status
-from fastapi.responses import StreamingResponse
-from starlette.background import BackgroundTask
+from sse_starlette import EventSourceResponse
 
 from service.api.auth import BearerDep, authorised_row
 from service.api.deps import JobDep, LabDep, QueueDep, SessionDep, SettingsDep
 from service.api.openapi import PROBLEM_RESPONSES
 from service.api.pagination import Page, PageDep
 from service.api.responses import DELETED, NO_SUCH_JOB
-from service.api.sse import MEDIA_TYPE, job_events, parse_last_event_id, wants_stream
+from service.api.sse import MEDIA_TYPE, parse_last_event_id, stream_response, wants_stream
 from service.domain.jobs import JobEventOut, JobHistory, JobIn, JobOut
 from service.jobs.queue import EnqueueFailed
 from service.jobs.submit import create_job
@@ -119,7 +118,7 @@ def list_events(
         str | None,
         Header(description="SSE only: resume after this event id (sent by browsers when they reconnect)."),
     ] = None,
-) -> Page[JobEventOut] | StreamingResponse:
+) -> Page[JobEventOut] | EventSourceResponse:
     """Status changes and (throttled) progress samples, oldest first; `next_cursor` continues the log.
 
     With `Accept: text/event-stream` the log streams as Server-Sent Events instead: each stored event once
@@ -131,17 +130,13 @@ def list_events(
     session.close()  # the stream reads with a session per poll: hold no connection while it is open
     settings = request.app.state.settings
     slot = request.app.state.stream_slots.take(request.headers.get("authorization", ""))
-    stream = job_events(
+    return stream_response(
         request.app.state.sessionmaker,
         job.id,
         after_id=parse_last_event_id(last_event_id),
         poll_s=settings.events_poll_s,
         max_s=settings.events_stream_max_s,
         slot=slot,
-    )
-    headers = {"Cache-Control": "no-cache", "X-Accel-Buffering": "no"}
-    return StreamingResponse(
-        stream, media_type=MEDIA_TYPE, headers=headers, background=BackgroundTask(slot.release)
     )
 
 
