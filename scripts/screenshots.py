@@ -153,7 +153,8 @@ def take(browser: Browser, url: str, key: str, demo: dict[str, str], out: Path) 
     page.wait_for_selector(f"#results[data-job='{demo['sixteen']}']")
     page.wait_for_function(
         "() => { const imgs = [...document.querySelectorAll('#heatmaps img')];"
-        " return imgs.length === 17 && imgs.every(i => i.complete && i.naturalWidth > 0); }"
+        " return document.querySelectorAll('#heatmaps img[data-reward]').length === 17"
+        " && imgs.every(i => i.complete && i.naturalWidth > 0); }"
     )
     page.wait_for_function("() => document.querySelectorAll('#key-states table').length === 16")
     page.locator("#results").screenshot(path=paths[2])

@@ -87,6 +87,7 @@ def test_run_page_draws_the_loss_curve_settings_and_best_step_of_a_job(demo: Dem
     curve.wait_for()
     assert curve.get_attribute("data-points") == str(len(history["points"]))
     assert curve.get_attribute("data-source") == "steps"
+    assert page.locator("#loss-curve-source").inner_text() == "(every step of the fit, as the engine computed it)"
     series = curve.locator("path").evaluate_all("ps => ps.map(p => p.dataset.series)")
     assert {"loss", "irl_loss", "sharing_loss"} <= set(series)
     assert curve.locator("path[data-series='loss']").evaluate("p => p.getTotalLength()") > 100
@@ -120,6 +121,7 @@ def test_the_curve_of_a_job_that_succeeds_while_shown_becomes_every_step(
     page, errors = dashboard(browser, demo)
     page.locator(f"tr[data-job='{job_id}'] [data-action='run']").click()
     page.wait_for_selector(f"#run[data-job='{job_id}'] #loss-curve svg[data-source='samples']")
+    assert "per progress sample" in page.locator("#loss-curve-source").inner_text()
     page.wait_for_selector(f"#run[data-job='{job_id}'] #loss-curve svg[data-source='steps']", timeout=120_000)
     job = ok(demo.http.get(f"/v1/jobs/{job_id}"), 200)
     assert job["status"] == "succeeded"

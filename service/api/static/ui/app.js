@@ -1438,9 +1438,16 @@ function ticks(lo, hi, count = 5) {
   return out;
 }
 
+// What the loss curve's points are, by the history's source.
+const CURVE_SOURCES = {
+  steps: "(every step of the fit, as the engine computed it)",
+  samples: "(per progress sample of the latest attempt; live while it runs)",
+};
+
 // Each loss over steps, the kept step marked; the series without values (no hold-out) are left out.
 function drawLossCurve(box, history) {
   const points = history.points;
+  $("loss-curve-source").textContent = CURVE_SOURCES[history.source] || CURVE_SOURCES.samples;
   if (points.length === 0) {
     box.replaceChildren(el("p", { class: "empty" }, "No progress yet: the curve starts with the first step."));
     return;
