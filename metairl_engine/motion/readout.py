@@ -19,7 +19,7 @@ from typing import Literal
 
 import numpy as np
 
-from metairl_engine.grids import DIRECTION_NAMES, velocity_coords
+from metairl_engine.grids import DIRECTION_NAMES, DIRECTIONS, velocity_coords
 
 
 def ring_centred(
@@ -53,6 +53,30 @@ def direction_readout(
     centred = np.zeros(int(np.asarray(reward).shape[0]))
     centred[union] = ring_centred(reward, width=width, height=height, states=union)
     return {d: float(centred[np.asarray(v, dtype=np.int64)].mean()) for d, v in visited.items() if len(v)}
+
+
+def path_bend(visited: Mapping[str, np.ndarray], *, width: int, height: int) -> dict[str, float]:
+    """Per direction, the level of the patient's preference at that direction's path relative to the others,
+    read from which way the paths bend (``visited`` {direction: velocity-grid state indices}); empty unless
+    all eight directions are there.
+
+    A patient pulled toward what it prefers bends each out-and-back path toward the preferred side, so the
+    mean signed offset of a path's cells from its instructed line (positive counter-clockwise) measures the
+    preference's slope around the centre at that direction. Summing the slopes of neighbouring directions
+    (trapezoid rule, 45° apart) around the circle gives each direction's level up to a constant; the loop's
+    closure error, spread evenly, is removed and the levels are centred. Model-free: it uses the paths only,
+    no fit (docs/motion.md, "Path bend")."""
+    if any(len(visited.get(d, ())) == 0 for d in DIRECTION_NAMES):
+        return {}
+    slopes = np.empty(len(DIRECTION_NAMES))
+    for k, d in enumerate(DIRECTION_NAMES):
+        x, y, _ = velocity_coords(np.asarray(visited[d], dtype=np.int64), width=width, height=height)
+        ux, uy = DIRECTIONS[k] / np.hypot(*DIRECTIONS[k])
+        slopes[k] = np.mean(-(x - (width - 1) / 2) * uy + (y - (height - 1) / 2) * ux)
+    steps = (slopes + np.roll(slopes, -1)) / 2  # from direction k to k + 1 (45° counter-clockwise)
+    levels = np.concatenate([[0.0], np.cumsum(steps)[:-1]]) - np.arange(len(steps)) / len(steps) * steps.sum()
+    levels -= levels.mean()
+    return {d: float(levels[k]) for k, d in enumerate(DIRECTION_NAMES)}
 
 
 BASELINE_CAVEAT = (
