@@ -48,7 +48,7 @@ from metairl_engine.fit import FitResult, Progress, TaskData, fit
 from metairl_engine.grids import DIRECTION_NAMES, grid_mdp, velocity_coords
 from metairl_engine.metrics import pearson
 from metairl_engine.motion.kinematics import compare_recordings, comparison_png, movements
-from metairl_engine.motion.readout import agreement, direction_readout, ring_centred
+from metairl_engine.motion.readout import agreement, direction_readout, path_bend, ring_centred
 from metairl_engine.motion.recording import DiscretiseSettings, demonstrations
 from metairl_engine.sim.controller_patient import ControllerSettings, simulate_controller_patient
 from metairl_engine.sim.patient import (
@@ -589,6 +589,7 @@ def agreement_one(patient: Any, session: str) -> dict[str, Any]:
     visited = {d: np.unique(np.concatenate([t.states for t in demos.by_label[d]])) for d in directions}
     learned = direction_readout(result.baseline, visited, width=w, height=h)
     truth = direction_readout(patient.ideal_reward, visited, width=w, height=h)
+    bend = path_bend(visited, width=w, height=h)
     reach: dict[str, list[float]] = {}
     for m in movements(rec):
         reach.setdefault(m.direction, []).append(m.peak_reach)
@@ -601,6 +602,12 @@ def agreement_one(patient: Any, session: str) -> dict[str, Any]:
         "spearman_truth": float(
             spearmanr([learned[d] for d in directions], [truth[d] for d in directions])[0]
         ),
+        "bend": bend,
+        "spearman_bend_truth": float(
+            spearmanr([bend[d] for d in directions], [truth[d] for d in directions])[0]
+        )
+        if bend
+        else None,
         "verdict": verdict.verdict,
         "spearman_reach": verdict.spearman,
         "detail": verdict.detail,
@@ -630,7 +637,7 @@ def agreement_main(argv: list[str]) -> None:
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "MOTION.md")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    rows = []
+    rows, claims, right = [], 0, 0
     for name in args.patients:
         weak = AGREEMENT_PATIENTS[name]
         patient = (
@@ -643,9 +650,12 @@ def agreement_main(argv: list[str]) -> None:
         for session in patient.sessions:
             found = agreement_one(patient, session)
             print(f"{name} {session}: {json.dumps(found)}", flush=True)
+            claims += found["verdict"] != "undetermined"
+            right += verdict_correct(found["verdict"], found["spearman_truth"]) == "yes"
+            bend = found["spearman_bend_truth"]
             rows.append(
                 f"| {name} | {session} | {found['spearman_truth']:+.2f} | {found['spearman_reach']:+.2f} | "
-                f"{found['truth_reach']:+.2f} | "
+                f"{found['truth_reach']:+.2f} | {'–' if bend is None else f'{bend:+.2f}'} | "
                 f"{found['verdict']} | {verdict_correct(found['verdict'], found['spearman_truth'])} | "
                 f"{found['wall_s']:.0f} s |"
             )
@@ -657,12 +667,18 @@ def agreement_main(argv: list[str]) -> None:
         "per-direction readout (`direction_readout` of the baseline, the service's `baseline_ring_centred`) "
         "with the same readout of the patient's true preference (`ideal_reward`). **vs reach**: Spearman of the "
         "learned readout with the mean peak reach, which the verdict (`agreement`, docs/motion.md) tests; **truth vs "
-        "reach**: how well the reach ranks the true preference (what the rule assumes). A "
-        "verdict is right when `agrees` goes with ρ(truth) > 0 and `disagrees` with ρ(truth) < 0.",
+        "reach**: how well the reach ranks the true preference (what the rule assumes); **path bend vs truth**: "
+        "Spearman of the model-free `path_bend` readout (the service's `path_bend`, docs/motion.md) with the "
+        "truth. A verdict is right when `agrees` goes with ρ(truth) > 0 and `disagrees` with ρ(truth) < 0.",
         "",
-        "| patient | session | vs truth | vs reach | truth vs reach | verdict | verdict right | wall |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| patient | session | vs truth | vs reach | truth vs reach | path bend vs truth | verdict | verdict right "
+        "| wall |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
         *rows,
+        "",
+        f"Verdict accuracy: {claims} claim(s) in {len(rows)} sessions, {right} right; `undetermined` "
+        f"({len(rows) - claims}) claims nothing and tells the user not to read the learned ranking as the "
+        "patient's preference.",
     ]
     write_block(args.out, "agreement", "\n".join(text))
     print("\n".join(text))
