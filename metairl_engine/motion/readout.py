@@ -196,9 +196,10 @@ def agreement(
     else:
         return replace(
             found,
-            detail=f"The recordings neither confirm nor contradict the learned ranking ({stats}, one-sided "
-            f"permutation p = {min(p_pos, p_neg):.3f}): do not read it as the patient's preference; read reach "
-            "and the weak side from the kinematic readout.",
+            detail="Do not read the learned ranking as the patient's preference: the recordings neither "
+            f"confirm nor contradict it ({stats}, one-sided permutation p = {min(p_pos, p_neg):.3f}), and on "
+            "synthetic patients such unconfirmed rankings ran against the true preference about as often as "
+            "with it. Read reach and the weak side from the kinematic readout.",
         )
     return replace(
         found,
