@@ -85,7 +85,8 @@ BASELINE_CAVEAT = (
     "task and can be learned as part of the baseline. On synthetic patients whose paths are only bent by "
     "their preference (not planned), the baseline did not correlate with that preference. Read reach, "
     "the weak side and session differences from the kinematic readout; read the baseline as a preference "
-    "only where its between-direction differences agree with it."
+    "only where its between-direction differences agree with it. The motion readout's `path_bend` ranks the "
+    "directions from which way the paths bend, with no fit."
 )
 """What the API should say next to a baseline learned from recordings (docs/api.md, "Motion readout"); see docs/motion.md."""
 
