@@ -24,6 +24,11 @@ Whether the motion summary's verdict on the learned readout is right (docs/motio
 readout agree with the recordings"), on the planner and on controllers weak left, right and forward left::
 
     .venv/bin/python -m benchmarks.motion agreement [--size 30] [--seed 0] [--patients NAME ...]
+
+How well the model-free `path_bend` readout and the peak reach rank each patient's true preference, over
+seeds, with no fit (docs/motion.md, "Path bend")::
+
+    .venv/bin/python -m benchmarks.motion bend [--size 30] [--seeds 5]
 """
 
 from __future__ import annotations
@@ -48,7 +53,7 @@ from metairl_engine.fit import FitResult, Progress, TaskData, fit
 from metairl_engine.grids import DIRECTION_NAMES, grid_mdp, velocity_coords
 from metairl_engine.metrics import pearson
 from metairl_engine.motion.kinematics import compare_recordings, comparison_png, movements
-from metairl_engine.motion.readout import agreement, direction_readout, ring_centred
+from metairl_engine.motion.readout import agreement, direction_readout, path_bend, ring_centred
 from metairl_engine.motion.recording import DiscretiseSettings, demonstrations
 from metairl_engine.sim.controller_patient import ControllerSettings, simulate_controller_patient
 from metairl_engine.sim.patient import (
@@ -589,6 +594,7 @@ def agreement_one(patient: Any, session: str) -> dict[str, Any]:
     visited = {d: np.unique(np.concatenate([t.states for t in demos.by_label[d]])) for d in directions}
     learned = direction_readout(result.baseline, visited, width=w, height=h)
     truth = direction_readout(patient.ideal_reward, visited, width=w, height=h)
+    bend = path_bend(visited, width=w, height=h)
     reach: dict[str, list[float]] = {}
     for m in movements(rec):
         reach.setdefault(m.direction, []).append(m.peak_reach)
@@ -601,6 +607,12 @@ def agreement_one(patient: Any, session: str) -> dict[str, Any]:
         "spearman_truth": float(
             spearmanr([learned[d] for d in directions], [truth[d] for d in directions])[0]
         ),
+        "bend": bend,
+        "spearman_bend_truth": float(
+            spearmanr([bend[d] for d in directions], [truth[d] for d in directions])[0]
+        )
+        if bend
+        else None,
         "verdict": verdict.verdict,
         "spearman_reach": verdict.spearman,
         "detail": verdict.detail,
@@ -630,7 +642,7 @@ def agreement_main(argv: list[str]) -> None:
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "MOTION.md")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    rows = []
+    rows, claims, right = [], 0, 0
     for name in args.patients:
         weak = AGREEMENT_PATIENTS[name]
         patient = (
@@ -643,9 +655,12 @@ def agreement_main(argv: list[str]) -> None:
         for session in patient.sessions:
             found = agreement_one(patient, session)
             print(f"{name} {session}: {json.dumps(found)}", flush=True)
+            claims += found["verdict"] != "undetermined"
+            right += verdict_correct(found["verdict"], found["spearman_truth"]) == "yes"
+            bend = found["spearman_bend_truth"]
             rows.append(
                 f"| {name} | {session} | {found['spearman_truth']:+.2f} | {found['spearman_reach']:+.2f} | "
-                f"{found['truth_reach']:+.2f} | "
+                f"{found['truth_reach']:+.2f} | {'–' if bend is None else f'{bend:+.2f}'} | "
                 f"{found['verdict']} | {verdict_correct(found['verdict'], found['spearman_truth'])} | "
                 f"{found['wall_s']:.0f} s |"
             )
@@ -657,14 +672,96 @@ def agreement_main(argv: list[str]) -> None:
         "per-direction readout (`direction_readout` of the baseline, the service's `baseline_ring_centred`) "
         "with the same readout of the patient's true preference (`ideal_reward`). **vs reach**: Spearman of the "
         "learned readout with the mean peak reach, which the verdict (`agreement`, docs/motion.md) tests; **truth vs "
-        "reach**: how well the reach ranks the true preference (what the rule assumes). A "
-        "verdict is right when `agrees` goes with ρ(truth) > 0 and `disagrees` with ρ(truth) < 0.",
+        "reach**: how well the reach ranks the true preference (what the rule assumes); **path bend vs truth**: "
+        "Spearman of the model-free `path_bend` readout (the service's `path_bend`, docs/motion.md) with the "
+        "truth. A verdict is right when `agrees` goes with ρ(truth) > 0 and `disagrees` with ρ(truth) < 0.",
         "",
-        "| patient | session | vs truth | vs reach | truth vs reach | verdict | verdict right | wall |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| patient | session | vs truth | vs reach | truth vs reach | path bend vs truth | verdict | verdict right "
+        "| wall |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
         *rows,
+        "",
+        f"Verdict accuracy: {claims} claim(s) in {len(rows)} sessions, {right} right; `undetermined` "
+        f"({len(rows) - claims}) claims nothing and tells the user not to read the learned ranking as the "
+        "patient's preference.",
     ]
     write_block(args.out, "agreement", "\n".join(text))
+    print("\n".join(text))
+
+
+def bend_one(patient: Any, session: str, truth_reward: np.ndarray) -> tuple[float, float] | None:
+    """Spearman of `path_bend` and of the mean peak reach with the per-direction truth (`direction_readout` of
+    ``truth_reward``) for one session; None where a direction has no demonstrations."""
+    w, h = patient.width, patient.height
+    rec = patient.sessions[session]
+    demos = demonstrations(rec, discretise_settings=DiscretiseSettings(width=w, height=h))
+    if any(d not in demos.by_label for d in DIRECTION_NAMES):
+        return None
+    visited = {d: np.unique(np.concatenate([t.states for t in demos.by_label[d]])) for d in DIRECTION_NAMES}
+    truth = direction_readout(truth_reward, visited, width=w, height=h)
+    bend = path_bend(visited, width=w, height=h)
+    reach: dict[str, list[float]] = {}
+    for m in movements(rec):
+        reach.setdefault(m.direction, []).append(m.peak_reach)
+    ranked = [truth[d] for d in DIRECTION_NAMES]
+    return (
+        float(spearmanr([bend[d] for d in DIRECTION_NAMES], ranked)[0]),
+        float(spearmanr([np.mean(reach[d]) for d in DIRECTION_NAMES], ranked)[0]),
+    )
+
+
+def bend_main(argv: list[str]) -> None:
+    """``bend``: no fits; over seeds, how well `path_bend` and the peak reach rank each patient's true
+    per-direction preference, with the null controllers (paths that ignore the preference) beside; the table
+    replaces MOTION.md's path-bend block."""
+    parser = argparse.ArgumentParser(prog="motion.py bend", description="path bend vs truth over seeds")
+    parser.add_argument("--size", type=int, default=30)
+    parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "MOTION.md")
+    args = parser.parse_args(argv)
+    rows = []
+    cases = [(name, weak, gain) for name, weak in AGREEMENT_PATIENTS.items() for gain in (None, 0.0)]
+    for name, weak, gain in cases:
+        if weak is None and gain is not None:
+            continue
+        found: dict[str, list[tuple[float, float]]] = {}
+        for seed in range(args.seeds):
+            if weak is None:
+                patient = simulate("planner", args.size, seed)
+                truth = patient.ideal_reward
+            else:
+                settings = ControllerSettings(width=args.size, height=args.size, seed=seed, weak_side=weak)
+                truth = simulate_controller_patient(settings).ideal_reward
+                patient = simulate_controller_patient(
+                    settings if gain is None else replace(settings, preference_gain=gain)
+                )
+            for session in patient.sessions:
+                one = bend_one(patient, session, truth)
+                if one is not None:
+                    found.setdefault(session, []).append(one)
+        label = name if gain is None else f"{name}, paths ignore the preference (null)"
+        for session, values in found.items():
+            bend, reach = np.array(values).T
+            rows.append(
+                f"| {label} | {session} | {len(values)} | {bend.mean():+.2f} [{bend.min():+.2f}, {bend.max():+.2f}] "
+                f"| {reach.mean():+.2f} [{reach.min():+.2f}, {reach.max():+.2f}] |"
+            )
+            print(rows[-1], flush=True)
+    text = [
+        "## Path bend: the preference ranked from the recordings, without a fit",
+        "",
+        f"`python -m benchmarks.motion bend --size {args.size} --seeds {args.seeds}`: no fits. Per patient and "
+        f'session, over seeds 0–{args.seeds - 1}: Spearman of `path_bend` (docs/motion.md, "Path bend") and of '
+        "the mean peak reach with the true per-direction preference (the agreement block's truth), mean "
+        "[min, max] over seeds. The null rows are the same controllers whose paths ignore the preference "
+        "(`preference_gain=0`), scored against the preference they ignore: what the readout gives with "
+        "nothing to read. The weak forward-left controller and the planner were never used to choose anything.",
+        "",
+        "| patient | session | seeds | path bend vs truth | reach vs truth |",
+        "| --- | --- | --- | --- | --- |",
+        *rows,
+    ]
+    write_block(args.out, "path-bend", "\n".join(text))
     print("\n".join(text))
 
 
@@ -673,5 +770,7 @@ if __name__ == "__main__":
         identify_main(sys.argv[2:])
     elif len(sys.argv) > 1 and sys.argv[1] == "agreement":
         agreement_main(sys.argv[2:])
+    elif len(sys.argv) > 1 and sys.argv[1] == "bend":
+        bend_main(sys.argv[2:])
     else:
         main()

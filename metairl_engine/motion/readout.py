@@ -19,7 +19,7 @@ from typing import Literal
 
 import numpy as np
 
-from metairl_engine.grids import DIRECTION_NAMES, velocity_coords
+from metairl_engine.grids import DIRECTION_NAMES, DIRECTIONS, velocity_coords
 from metairl_engine.motion.bootstrap import percentile_interval
 
 
@@ -56,13 +56,38 @@ def direction_readout(
     return {d: float(centred[np.asarray(v, dtype=np.int64)].mean()) for d, v in visited.items() if len(v)}
 
 
+def path_bend(visited: Mapping[str, np.ndarray], *, width: int, height: int) -> dict[str, float]:
+    """Per direction, the level of the patient's preference at that direction's path relative to the others,
+    read from which way the paths bend (``visited`` {direction: velocity-grid state indices}); empty unless
+    all eight directions are there.
+
+    A patient pulled toward what it prefers bends each out-and-back path toward the preferred side, so the
+    mean signed offset of a path's cells from its instructed line (positive counter-clockwise) measures the
+    preference's slope around the centre at that direction. Summing the slopes of neighbouring directions
+    (trapezoid rule, 45° apart) around the circle gives each direction's level up to a constant; the loop's
+    closure error, spread evenly, is removed and the levels are centred. Model-free: it uses the paths only,
+    no fit (docs/motion.md, "Path bend")."""
+    if any(len(visited.get(d, ())) == 0 for d in DIRECTION_NAMES):
+        return {}
+    slopes = np.empty(len(DIRECTION_NAMES))
+    for k, d in enumerate(DIRECTION_NAMES):
+        x, y, _ = velocity_coords(np.asarray(visited[d], dtype=np.int64), width=width, height=height)
+        ux, uy = DIRECTIONS[k] / np.hypot(*DIRECTIONS[k])
+        slopes[k] = np.mean(-(x - (width - 1) / 2) * uy + (y - (height - 1) / 2) * ux)
+    steps = (slopes + np.roll(slopes, -1)) / 2  # from direction k to k + 1 (45° counter-clockwise)
+    levels = np.concatenate([[0.0], np.cumsum(steps)[:-1]]) - np.arange(len(steps)) / len(steps) * steps.sum()
+    levels -= levels.mean()
+    return {d: float(levels[k]) for k, d in enumerate(DIRECTION_NAMES)}
+
+
 BASELINE_CAVEAT = (
     "Out-and-back movements identify how the baseline differs between directions and across each path, not "
     "how it changes with distance from the centre: moving out to the instructed distance is shared by every "
     "task and can be learned as part of the baseline. On synthetic patients whose paths are only bent by "
     "their preference (not planned), the baseline did not correlate with that preference. Read reach, "
     "the weak side and session differences from the kinematic readout; read the baseline as a preference "
-    "only where its between-direction differences agree with it."
+    "only where its between-direction differences agree with it. The motion readout's `path_bend` ranks the "
+    "directions from which way the paths bend, with no fit."
 )
 """What the API should say next to a baseline learned from recordings (docs/api.md, "Motion readout"); see docs/motion.md."""
 
@@ -180,9 +205,10 @@ def agreement(
     else:
         return replace(
             found,
-            detail=f"The recordings neither confirm nor contradict the learned ranking ({stats}, one-sided "
-            f"permutation p = {min(p_pos, p_neg):.3f}): do not read it as the patient's preference; read reach "
-            "and the weak side from the kinematic readout.",
+            detail="Do not read the learned ranking as the patient's preference: the recordings neither "
+            f"confirm nor contradict it ({stats}, one-sided permutation p = {min(p_pos, p_neg):.3f}), and on "
+            "synthetic patients such unconfirmed rankings ran against the true preference about as often as "
+            "with it. Read reach and the weak side from the kinematic readout.",
         )
     return replace(
         found,

@@ -67,6 +67,12 @@ class LearnedDirection(BaseModel):
         "centre (docs/motion.md): higher = the baseline favours this direction's path."
     )
     task_baseline_pearson: float = Field(description="Pearson r of task reward and baseline on those states.")
+    path_bend: float | None = Field(
+        default=None,
+        description="Model-free, no fit: the preference's level at this direction relative to the others, "
+        "integrated around the centre from which way every direction's paths bend (docs/motion.md, "
+        '"Path bend"); higher = preferred. Null unless all eight directions have a task.',
+    )
 
 
 class Agreement(BaseModel):

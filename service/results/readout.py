@@ -18,7 +18,13 @@ from sqlalchemy.orm import Session
 
 from metairl_engine.grids import DIRECTION_NAMES
 from metairl_engine.motion.kinematics import Movement, compare, comparison_png, movements, summarise
-from metairl_engine.motion.readout import BASELINE_CAVEAT, Agreement, agreement, direction_readout
+from metairl_engine.motion.readout import (
+    BASELINE_CAVEAT,
+    Agreement,
+    agreement,
+    direction_readout,
+    path_bend,
+)
 from service.domain.motion import UNITS
 from service.problems import Conflict
 from service.results.engine_modules import metrics
@@ -107,7 +113,9 @@ def learned_readout(
     by a direction, as recordings name them): ``baseline_ring_centred`` (`direction_readout`: the mean over
     the task's visited states of the baseline minus its mean at the same distance from the centre, the part
     of the baseline out-and-back movements identify; higher = the baseline favours that direction's path),
-    ``task_baseline_pearson`` on those states, and the ``agreement`` of those values with the peak reach of
+    ``task_baseline_pearson`` on those states, ``path_bend`` (`readout.path_bend`, model-free: the
+    preference's level per direction from which way the paths bend; None unless all eight directions are
+    there), and the ``agreement`` of those values with the peak reach of
     ``moves`` (`readout.agreement`). None without a succeeded job."""
     job = latest_succeeded_job(session, demonstrator)
     if job is None:
@@ -142,12 +150,9 @@ def learned_readout(
     n_states = rows[0].n_states
     baseline = get_array(session, rows[0].reward_blob_id).astype(np.float64)
     visited = {task.name: visited_states(session, [task.id], n_states) for _, task in direction_tasks}
-    learned = direction_readout(
-        baseline,
-        {d: np.flatnonzero(mask) for d, mask in visited.items()},
-        width=layout["width"],
-        height=layout["height"],
-    )
+    states = {d: np.flatnonzero(mask) for d, mask in visited.items()}
+    learned = direction_readout(baseline, states, width=layout["width"], height=layout["height"])
+    bend = path_bend(states, width=layout["width"], height=layout["height"])
     for reward, task in direction_tasks:
         values = get_array(session, reward.reward_blob_id).astype(np.float64)
         out["directions"].append(
@@ -158,6 +163,7 @@ def learned_readout(
                 "n_visited_states": int(visited[task.name].sum()),
                 "baseline_ring_centred": learned.get(task.name),
                 "task_baseline_pearson": metrics().pearson(values, baseline, mask=visited[task.name]),
+                "path_bend": bend.get(task.name),
             }
         )
     out["agreement"] = agreement_body(agreement(learned, reach))

@@ -40,6 +40,7 @@ def test_reach_that_does_not_order_the_directions_leaves_it_undetermined() -> No
     found = agreement({d: float(k) for k, d in enumerate(DIRECTION_NAMES)}, noisy)
     assert found.verdict == "undetermined"
     assert found.p_positive is not None and found.p_positive > 0.05
+    assert found.detail.startswith("Do not read the learned ranking as the patient's preference")
 
 
 def test_too_few_directions_are_undetermined() -> None:

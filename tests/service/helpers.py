@@ -222,11 +222,17 @@ UNIT = {
 
 
 def cop_rows(
-    reach: dict[str, float], *, repetitions: int = 3, rate: float = 50.0, seed: int = 0
+    reach: dict[str, float],
+    *,
+    repetitions: int = 3,
+    rate: float = 50.0,
+    seed: int = 0,
+    bend: dict[str, float] | None = None,
 ) -> list[dict[str, Any]]:
     """Hand-made COP samples: per direction (name: peak distance in metres) `repetitions` out-and-back
     movements (0.6 s rest at the centre without instruction, then 1.2 s out and back along the direction with
-    a raised-cosine profile, instructed), slightly jittered in reach and sideways."""
+    a raised-cosine profile, instructed), slightly jittered in reach and sideways; ``bend`` (name: metres)
+    shifts a direction's paths sideways by that much at their peak, counter-clockwise when positive."""
     rng = np.random.default_rng(seed)
     rows: list[dict[str, Any]] = []
     t = 0.0
@@ -237,7 +243,7 @@ def cop_rows(
                 rows.append({"t": round(t, 4), "x": 0.0, "y": 0.0, "instruction": "rest"})
                 t += 1 / rate
             peak = distance * (1 + 0.05 * rng.standard_normal())
-            side = 0.004 * rng.standard_normal()
+            side = 0.004 * rng.standard_normal() + (bend or {}).get(name, 0.0)
             n = round(1.2 * rate)
             for k in range(n):
                 a = peak * 0.5 * (1 - np.cos(2 * np.pi * k / n))

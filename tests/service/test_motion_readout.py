@@ -18,6 +18,7 @@ from metairl_engine.motion.recording import Recording
 from metairl_engine.sim.controller_patient import ControllerSettings, simulate_controller_patient
 from tests.service.helpers import (
     PLATE,
+    UNIT,
     cop_rows,
     created,
     make_demonstrator,
@@ -167,6 +168,7 @@ def test_comparison_and_summary_carry_each_sides_latest_learned_readout(
         assert row["task_id"] == task_id and row["reward_id"] == reward_id
         assert row["n_visited_states"] > 0 and row["task_baseline_pearson"] > 0.9
         assert row["baseline_ring_centred"] is not None
+        assert row["path_bend"] is None  # three directions: no loop around the centre to integrate
     summary = created(client.get(f"/v1/demonstrators/{b['id']}/motion-summary", headers=auth), 200)
     assert summary["learned"] == learned  # the summary carries the same readout of b's latest job
     # three directions cannot be ranked with confidence: the verdict says so instead of endorsing the readout
@@ -210,6 +212,26 @@ def test_the_verdict_says_whether_the_learned_readout_ranks_directions_as_the_re
     make_recording(client, auth, other["id"], FAN)
     body = client.post("/v1/motion-comparisons", json={"a": other["id"], "b": dem["id"]}, headers=auth).json()
     assert body["learned"]["b"]["agreement"] == agreement
+
+
+def test_path_bend_ranks_the_side_every_path_bends_toward_highest(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    dem = make_demonstrator(client, auth)
+    # every path bends toward forward: counter-clockwise on the right half, clockwise on the left
+    bend = {d: 0.06 * unit[0] for d, unit in UNIT.items()}
+    make_recording(client, auth, dem["id"], dict.fromkeys(DIRECTION_NAMES, 0.12), bend=bend)
+    job = created(client.post("/v1/jobs", json={"demonstrator_id": dem["id"]}, headers=auth), 202)
+    baseline = toward("right")
+    store_results(
+        app, job_id=job["id"], baseline=baseline, task_rewards=[baseline] * len(job["task_ids"]), n_actions=8
+    )
+    learned = created(client.get(f"/v1/demonstrators/{dem['id']}/motion-summary", headers=auth), 200)[
+        "learned"
+    ]
+    bends = {d: row["path_bend"] for d, row in by_direction(learned).items()}
+    assert set(bends) == set(DIRECTION_NAMES)
+    assert max(bends, key=bends.__getitem__) == "forward" and min(bends, key=bends.__getitem__) == "backward"
 
 
 def test_another_labs_demonstrators_are_not_found(

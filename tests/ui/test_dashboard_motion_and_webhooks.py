@@ -124,6 +124,9 @@ def test_dashboard_reads_out_a_sessions_motion_beside_its_learned_rewards_and_co
     assert sorted(directions(page, "#learned")) == sorted(UNSTIMULATED)
     assert job_id in page.locator("#learned .learned-job").inner_text()
     assert "distance from the centre" in page.locator("#learned [data-role='caveat']").inner_text()
+    # Path bend needs all eight directions: three give none, shown as a dash.
+    assert all(d["path_bend"] is None for d in summary["learned"]["directions"])
+    assert page.locator("#learned tr[data-direction='left'] [data-role='path-bend']").inner_text() == "–"
     # Above it, the verdict of the API on it against the recordings, in the API's words.
     verdict = page.locator("#learned [data-role='agreement']")
     assert verdict.get_attribute("data-verdict") == summary["learned"]["agreement"]["verdict"]

@@ -784,7 +784,7 @@ async function renderLearned(learned, current) {
   const withTruth = learned.directions.some((d) => truth.get(d.task_id) !== null && truth.get(d.task_id) !== undefined);
   const verdict = renderAgreement(learned.agreement);
   const preference = learned.agreement.verdict === "agrees" ? "baseline, ring-centred" : "baseline, ring-centred (not a preference)";
-  const heads = ["direction", "visited states", preference, "r(task, baseline)"];
+  const heads = ["direction", "visited states", preference, "r(task, baseline)", "path bend (no fit)"];
   const table = learned.directions.length
     ? el(
         "table",
@@ -801,6 +801,7 @@ async function renderLearned(learned, current) {
               el("td", { class: "num" }, d.n_visited_states),
               el("td", { class: `num ${d.baseline_ring_centred === null ? "" : d.baseline_ring_centred >= 0 ? "pos" : "neg"}` }, fmt(d.baseline_ring_centred, 3)),
               el("td", { class: "num" }, fmt(d.task_baseline_pearson, 2)),
+              el("td", { class: "num", "data-role": "path-bend" }, fmt(d.path_bend, 2)),
               withTruth ? el("td", { class: "num" }, fmt(truth.get(d.task_id), 2)) : null,
             ),
           ),
