@@ -50,6 +50,8 @@ class FitResult:
     ``baseline_spread`` (S,) and ``reward_spread`` (T, S): per state, the standard deviation of the
     (mean-centred) reward across the ensemble's members, how much members fitted to different folds of
     the demonstrations disagree there; None where one member was fitted (``ensemble`` 1, ``maxent``).
+    ``shrinkage`` is the λ of ``rewards`` = baseline + λ·(task reward − baseline) chosen by held-out
+    likelihood (`FitConfig.shrink_deviations`; 1: the task rewards as learned).
     """
 
     baseline: np.ndarray
@@ -61,6 +63,7 @@ class FitResult:
     config: FitConfig
     baseline_spread: np.ndarray | None = None
     reward_spread: np.ndarray | None = None
+    shrinkage: float = 1.0
 
     ARRAYS = ("baseline", "rewards", "values", "policies", "baseline_spread", "reward_spread")
     """The fields saved as arrays (the rest, config, history and best step, as JSON beside them)."""
@@ -71,6 +74,7 @@ class FitResult:
         meta = {
             "config": self.config.to_dict(),
             "best_step": self.best_step,
+            "shrinkage": self.shrinkage,
             "history": [asdict(p) for p in self.history],
         }
         with open(path, "wb") as file:
@@ -91,5 +95,6 @@ class FitResult:
             reward_spread=arrays.get("reward_spread"),
             history=[Progress(**p) for p in meta["history"]],
             best_step=meta["best_step"],
+            shrinkage=meta.get("shrinkage", 1.0),
             config=FitConfig.from_dict(meta["config"]),
         )
