@@ -93,8 +93,9 @@ class FitConfig:
     from it, λ ∈ {0, ¼, ½, ¾, 1} the one whose rewards' optimal policies best predict the held-out steps (the
     ensemble's K-fold held-out NLL; ties keep the larger λ). With a few demonstrations much of a deviation is
     noise the held-out steps do not bear out; with many, λ goes to 1. Costs one value iteration per candidate
-    on every state after the fit. Only with sharing (a baseline to shrink towards) and a hold-out; the λ
-    chosen is `FitResult.shrinkage`. False: λ = 1, the task networks' rewards as learned."""
+    on every state after the fit, so only up to `shrinkage.BUDGET` (2^17) task-states T·K·S: an 80,000-state
+    fit keeps λ = 1. Only with sharing (a baseline to shrink towards) and a hold-out; the λ chosen is
+    `FitResult.shrinkage`. False: λ = 1, the task networks' rewards as learned."""
 
     tabular_inputs: TabularInputs = "coordinates"
     """What the networks see of each state when the MDP has no state features. ``coordinates``: the state's

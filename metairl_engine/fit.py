@@ -37,6 +37,7 @@ from metairl_engine.memory import EVAL_CHUNK, TRAIN_CHUNK, retained_heap
 from metairl_engine.networks import StackedMLP, fourier_features
 from metairl_engine.results import FitResult, Progress, TaskData
 from metairl_engine.sharing import segment_sum, sharing_loss
+from metairl_engine.shrinkage import BUDGET as SHRINK_BUDGET
 from metairl_engine.shrinkage import shrink_deviations
 
 __all__ = ["FitResult", "Progress", "TaskData", "fit"]
@@ -609,7 +610,12 @@ def _evaluate(
         values = backup(q_all, kind=config.backup, bgi_k=config.bgi_k)
         members = (f - problem.gamma[:, None] * values).reshape(n_members, n_tasks, n_states)
         shrinkage = 1.0
-        if base_members is not None and config.shrink_deviations and len(problem.held):
+        if (
+            base_members is not None
+            and config.shrink_deviations
+            and len(problem.held)
+            and problem.n_nets * n_states <= SHRINK_BUDGET
+        ):
             shrunk = shrink_deviations(
                 every_row,
                 members.reshape(problem.n_nets, n_states),
