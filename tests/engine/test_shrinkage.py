@@ -6,8 +6,10 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pytest
 import torch
 
+import metairl_engine.fit as fit_module
 from metairl_engine import FitConfig
 from metairl_engine.backups import QRows
 from metairl_engine.fit import fit
@@ -86,3 +88,14 @@ def test_the_chosen_share_survives_saving_the_result(tmp_path: Path) -> None:
     path = tmp_path / "result.npz"
     result.save(path)
     assert FitResult.load(path).shrinkage == result.shrinkage
+
+
+def test_a_fit_with_more_task_states_than_the_budget_keeps_the_task_rewards_as_learned(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    tasks = _same_reward_tasks(n_tasks=2)
+    n_task_states = 2 * CONFIG.ensemble * tasks[0].mdp.n_states
+    monkeypatch.setattr(fit_module, "SHRINK_BUDGET", n_task_states - 1)
+    assert fit(tasks, CONFIG).shrinkage == 1.0
+    monkeypatch.setattr(fit_module, "SHRINK_BUDGET", n_task_states)
+    assert fit(tasks, CONFIG).shrinkage < 1.0
