@@ -46,6 +46,10 @@ COMMAND = ".venv/bin/python -m benchmarks.families"
 ENGINE = "shrink-to-baseline"
 """Engine of the cached rows: change it whenever the engine changes what a fit returns."""
 
+PREVIOUS = "coordinates-2-octaves"
+"""The engine before `FitConfig.shrink_deviations` (task rewards returned as learned): its rows stay in the
+cache and on the page, for before/after."""
+
 EARLIER = "features-only"
 """The engine before `FitConfig.task_coordinates` (task networks saw the MDP's features alone): its rows
 stay in the cache and on the page, for before/after."""
@@ -161,6 +165,7 @@ def run_one(world: RewardWorld, sims: list[SimTask], config: FitConfig) -> dict[
         "baseline_pearson": pearson(result.baseline, world.reward),
         "steps": len(result.history),
         "kept_step": result.best_step,
+        "shrinkage": result.shrinkage,
         "heldout_nll": None if kept is None else float(kept),
         "cpu_seconds": cpu,
     }
@@ -248,7 +253,7 @@ def main() -> None:
                         demos,
                         v,
                         w,
-                        {k: round(out[k], 3) for k in ("pearson", "evd_random", "cpu_seconds")},
+                        {k: round(out[k], 3) for k in ("pearson", "evd_random", "shrinkage", "cpu_seconds")},
                         flush=True,
                     )
     print(table(rows, args.variants, args.worlds))
@@ -330,7 +335,9 @@ def page(rows: list[dict[str, Any]], worlds: int) -> str:
         "features, wind 0.1.\n\n"
         + f"## Today's engine (engine `{ENGINE}`)\n\n"
         + table(rows, list(TABLE_VARIANTS), worlds)
-        + f"\n\n## Before: task networks saw the MDP's features alone (engine `{EARLIER}`)\n\n"
+        + f"\n\n## Before: task rewards as learned, not shrunk towards the baseline (engine `{PREVIOUS}`)\n\n"
+        + table(rows, list(TABLE_VARIANTS), worlds, engine=PREVIOUS)
+        + f"\n\n## Before that: task networks saw the MDP's features alone (engine `{EARLIER}`)\n\n"
         + table(rows, list(TABLE_VARIANTS), worlds, engine=EARLIER)
         + f"\n\n## The sharing, knob by knob ({family}, {demos} demonstrations per task, engine `{EARLIER}`)\n\n"
         + diagnostics(rows)
