@@ -88,6 +88,15 @@ class FitConfig:
     out: without the place a task network spreads its goal over every state whose features look alike.
     Features that are the coordinates (a grid's x, y) are left as they are."""
 
+    shrink_deviations: bool = True
+    """Each task reward returned is r_b + λ·(r_i − r_b): the baseline plus λ of the task's learned deviation
+    from it, λ ∈ {0, ¼, ½, ¾, 1} the one whose rewards' optimal policies best predict the held-out steps (the
+    ensemble's K-fold held-out NLL; ties keep the larger λ). With a few demonstrations much of a deviation is
+    noise the held-out steps do not bear out; with many, λ goes to 1. Costs one value iteration per candidate
+    on every state after the fit, so only up to `shrinkage.BUDGET` (2^17) task-states T·K·S: an 80,000-state
+    fit keeps λ = 1. Only with sharing (a baseline to shrink towards) and a hold-out; the λ chosen is
+    `FitResult.shrinkage`. False: λ = 1, the task networks' rewards as learned."""
+
     tabular_inputs: TabularInputs = "coordinates"
     """What the networks see of each state when the MDP has no state features. ``coordinates``: the state's
     position, from the MDP's layout when it has one (x, y in [0, 1], plus a one-hot of its channel), else

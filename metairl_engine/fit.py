@@ -37,6 +37,8 @@ from metairl_engine.memory import EVAL_CHUNK, TRAIN_CHUNK, retained_heap
 from metairl_engine.networks import StackedMLP, fourier_features
 from metairl_engine.results import FitResult, Progress, TaskData
 from metairl_engine.sharing import segment_sum, sharing_loss
+from metairl_engine.shrinkage import BUDGET as SHRINK_BUDGET
+from metairl_engine.shrinkage import shrink_deviations
 
 __all__ = ["FitResult", "Progress", "TaskData", "fit"]
 
@@ -569,8 +571,10 @@ def _evaluate(
 ) -> FitResult:
     """Rewards, values and policies of every task on every state from the kept networks (eq. 5–9).
 
-    With an ensemble, each quantity is the mean over the K members (policies: the members' mixture), and
-    the rewards' spread across the members comes with them (`member_spread`).
+    With sharing and a hold-out, each member's task rewards are first shrunk towards its baseline by the λ
+    its held-out folds choose (`shrinkage.shrink_deviations`; values and policies are then those of the
+    shrunk rewards). With an ensemble, each quantity is the mean over the K members (policies: the members'
+    mixture), and the rewards' spread across the members comes with them (`member_spread`).
     """
     all_states = np.arange(problem.n_states)
     n_members, n_tasks, n_states = problem.n_members, problem.n_tasks, problem.n_states
@@ -596,6 +600,26 @@ def _evaluate(
         q_all = every_row(f).reshape(problem.n_nets, n_states, -1)
         values = backup(q_all, kind=config.backup, bgi_k=config.bgi_k)
         members = (f - problem.gamma[:, None] * values).reshape(n_members, n_tasks, n_states)
+        shrinkage = 1.0
+        if (
+            base_members is not None
+            and config.shrink_deviations
+            and len(problem.held)
+            and problem.n_nets * n_states <= SHRINK_BUDGET
+        ):
+            shrunk = shrink_deviations(
+                every_row,
+                members.reshape(problem.n_nets, n_states),
+                base_members.repeat_interleave(n_tasks, dim=0),  # network k·T + i: member k's baseline
+                problem.gamma,
+                q=q_all,
+                values=values,
+                score=lambda q: _heldout_score(problem, q, config),
+                kind=config.backup,
+                bgi_k=config.bgi_k,
+            )
+            shrinkage, q_all, values = shrunk.shrinkage, shrunk.q, shrunk.values
+            members = shrunk.rewards.reshape(n_members, n_tasks, n_states)
         rewards = members.mean(dim=0)
         if base_members is None:
             base_members = members.mean(dim=1)
@@ -612,7 +636,20 @@ def _evaluate(
         config=config,
         baseline_spread=member_spread(base_members),
         reward_spread=member_spread(members),
+        shrinkage=shrinkage,
     )
+
+
+def _heldout_score(problem: _Problem, q: torch.Tensor, config: FitConfig) -> float:
+    """The K-fold held-out NLL of Q (T·K, S, A): each member's held-out steps, calibrated over the scale of Q
+    per member as the stopping rule scores them (`calibrated_nll`), averaged over every held-out step."""
+    held = problem.held
+    tasks = torch.from_numpy(held.tasks).to(q.device)
+    states = torch.from_numpy(held.states).to(q.device)
+    folds = calibrated_nll(
+        q[tasks, states], problem.held_actions, confidence=config.confidence, groups=problem.held_of_member
+    )
+    return float(torch.cat(folds).mean())
 
 
 def member_spread(members: torch.Tensor) -> np.ndarray | None:

@@ -53,6 +53,8 @@ class FitResult:
     error bar: it ranks where a refit of another seed moves the reward, weakly, and not where the reward is
     wrong, since every fit makes nearly the same error (`benchmarks/uncertainty.py`, docs/method.md
     "Uncertainty per state"). None where one member was fitted (``ensemble`` 1, ``maxent``).
+    ``shrinkage`` is the λ of ``rewards`` = baseline + λ·(task reward − baseline) chosen by held-out
+    likelihood (`FitConfig.shrink_deviations`; 1: the task rewards as learned).
     """
 
     baseline: np.ndarray
@@ -64,6 +66,7 @@ class FitResult:
     config: FitConfig
     baseline_spread: np.ndarray | None = None
     reward_spread: np.ndarray | None = None
+    shrinkage: float = 1.0
 
     ARRAYS = ("baseline", "rewards", "values", "policies", "baseline_spread", "reward_spread")
     """The fields saved as arrays (the rest, config, history and best step, as JSON beside them)."""
@@ -74,6 +77,7 @@ class FitResult:
         meta = {
             "config": self.config.to_dict(),
             "best_step": self.best_step,
+            "shrinkage": self.shrinkage,
             "history": [asdict(p) for p in self.history],
         }
         with open(path, "wb") as file:
@@ -94,5 +98,6 @@ class FitResult:
             reward_spread=arrays.get("reward_spread"),
             history=[Progress(**p) for p in meta["history"]],
             best_step=meta["best_step"],
+            shrinkage=meta.get("shrinkage", 1.0),
             config=FitConfig.from_dict(meta["config"]),
         )

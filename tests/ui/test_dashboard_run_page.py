@@ -87,7 +87,10 @@ def test_run_page_draws_the_loss_curve_settings_and_best_step_of_a_job(demo: Dem
     curve.wait_for()
     assert curve.get_attribute("data-points") == str(len(history["points"]))
     assert curve.get_attribute("data-source") == "steps"
-    assert page.locator("#loss-curve-source").inner_text() == "(every step of the fit, as the engine computed it)"
+    assert (
+        page.locator("#loss-curve-source").inner_text()
+        == "(every step of the fit, as the engine computed it)"
+    )
     series = curve.locator("path").evaluate_all("ps => ps.map(p => p.dataset.series)")
     assert {"loss", "irl_loss", "sharing_loss"} <= set(series)
     assert curve.locator("path[data-series='loss']").evaluate("p => p.getTotalLength()") > 100

@@ -1,0 +1,101 @@
+"""Task rewards are shrunk towards the baseline by the share of their deviation that held-out steps bear out."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+import metairl_engine.fit as fit_module
+from metairl_engine import FitConfig
+from metairl_engine.backups import QRows
+from metairl_engine.fit import fit
+from metairl_engine.planning import transition_matrix, value_iteration
+from metairl_engine.results import FitResult, TaskData
+from metairl_engine.shrinkage import SHRINKAGE, optimal_q
+from tests.engine.helpers import as_sparse, small_grid, soft_demos, task
+
+CONFIG = FitConfig(hidden=(16,), max_steps=120, ensemble=2, holdout_fraction=0.3)
+
+
+def _same_reward_tasks(n_tasks: int = 4) -> list[TaskData]:
+    """Tasks on a 5×5 grid that all follow one reward (a slope towards a corner), two short demonstrations
+    each: whatever a task learns beyond the shared reward is noise."""
+    mdp = small_grid(size=5)
+    assert mdp.features is not None
+    reward = mdp.features.sum(axis=1).astype(np.float64)
+    return [
+        task(mdp, soft_demos(mdp, reward, starts=np.array([0, 12]), length=5, seed=i, confidence=3.0))
+        for i in range(n_tasks)
+    ]
+
+
+def test_tasks_that_share_one_reward_are_pulled_to_the_baseline_by_the_chosen_share() -> None:
+    tasks = _same_reward_tasks()
+    shrunk = fit(tasks, CONFIG)
+    learned = fit(tasks, replace(CONFIG, shrink_deviations=False))
+    assert learned.shrinkage == 1.0
+    assert shrunk.shrinkage in SHRINKAGE and shrunk.shrinkage < 1.0
+    # The same networks (the choice comes after the fit): baseline + λ·(task reward − baseline).
+    np.testing.assert_allclose(shrunk.baseline, learned.baseline)
+    expected = learned.baseline + shrunk.shrinkage * (learned.rewards - learned.baseline)
+    np.testing.assert_allclose(shrunk.rewards, expected, atol=1e-5)
+    # Values and policies are those of the shrunk rewards, not of the networks.
+    assert not np.allclose(shrunk.values, learned.values, atol=1e-3)
+    np.testing.assert_allclose(shrunk.policies.sum(axis=-1), 1.0, atol=1e-5)
+
+
+def test_without_a_baseline_or_a_hold_out_the_task_rewards_are_kept_as_learned() -> None:
+    tasks = _same_reward_tasks(n_tasks=2)
+    for config in (replace(CONFIG, sharing="none"), replace(CONFIG, holdout_fraction=0.0)):
+        on = fit(tasks, config)
+        off = fit(tasks, replace(config, shrink_deviations=False))
+        assert on.shrinkage == 1.0
+        np.testing.assert_array_equal(on.rewards, off.rewards)
+
+
+def test_value_iteration_on_the_networks_rows_matches_the_reference_planner() -> None:
+    rng = np.random.default_rng(3)
+    for mdp in (small_grid(size=4), as_sparse(small_grid(size=4))):
+        rewards = rng.normal(size=(2, mdp.n_states))
+        every = np.arange(mdp.n_states)
+        rows = QRows(
+            [mdp, mdp],
+            np.repeat([0, 1], mdp.n_states),
+            np.tile(every, 2),
+            columns=every,
+            n_columns=mdp.n_states,
+        )
+        gamma = torch.full((2,), mdp.gamma, dtype=torch.float32)
+        q, _ = optimal_q(
+            rows,
+            torch.from_numpy(rewards).float(),
+            gamma,
+            values=torch.zeros(2, mdp.n_states, dtype=torch.float32),
+            kind="max",
+            bgi_k=10.0,
+        )
+        for i in range(2):
+            reference = value_iteration(transition_matrix(mdp), rewards[i], gamma=mdp.gamma, backup="max").q
+            np.testing.assert_allclose(q[i].numpy(), reference, atol=1e-2)
+
+
+def test_the_chosen_share_survives_saving_the_result(tmp_path: Path) -> None:
+    result = fit(_same_reward_tasks(n_tasks=2), replace(CONFIG, max_steps=20))
+    path = tmp_path / "result.npz"
+    result.save(path)
+    assert FitResult.load(path).shrinkage == result.shrinkage
+
+
+def test_a_fit_with_more_task_states_than_the_budget_keeps_the_task_rewards_as_learned(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    tasks = _same_reward_tasks(n_tasks=2)
+    n_task_states = 2 * CONFIG.ensemble * tasks[0].mdp.n_states
+    monkeypatch.setattr(fit_module, "SHRINK_BUDGET", n_task_states - 1)
+    assert fit(tasks, CONFIG).shrinkage == 1.0
+    monkeypatch.setattr(fit_module, "SHRINK_BUDGET", n_task_states)
+    assert fit(tasks, CONFIG).shrinkage < 1.0
