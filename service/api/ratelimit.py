@@ -67,6 +67,13 @@ def retry_after(seconds: float) -> str:
     return str(max(1, math.ceil(seconds)))
 
 
+def too_many(why: str, wait: float) -> TooManyRequests:
+    """The 429 refusal: ``why``, with the seconds to wait in its detail and its ``Retry-After``."""
+    return TooManyRequests(
+        f"{why}; retry after {retry_after(wait)} s.", headers={"Retry-After": retry_after(wait)}
+    )
+
+
 class RateLimit:
     """Refuse `/v1` requests over ``rate_limit_per_key`` (per API key) or from an address over
     ``rate_limit_per_ip`` failed authentications; a rate of 0 turns that limit off."""
@@ -102,24 +109,16 @@ class RateLimit:
             and digest not in self.accepted
             and (wait := self.per_ip.wait(address)) is not None
         ):
-            refusal = TooManyRequests(
-                f"Too many requests with a missing or invalid API key from {address}; retry after "
-                f"{retry_after(wait)} s.",
-                headers={"Retry-After": retry_after(wait)},
-            )
-            await problem_response(refusal)(scope, receive, send)
+            why = f"Too many requests with a missing or invalid API key from {address}"
+            await problem_response(too_many(why, wait))(scope, receive, send)
             return
         if (
             self.per_key is not None
             and digest is not None
             and (over := self.per_key.take(digest)) is not None
         ):
-            refusal = TooManyRequests(
-                f"More than {self.per_key.rate:g} requests a second (bursts of {self.per_key.burst}) with "
-                f"this API key; retry after {retry_after(over)} s.",
-                headers={"Retry-After": retry_after(over)},
-            )
-            await problem_response(refusal)(scope, receive, send)
+            why = f"More than {self.per_key.rate:g} requests a second (bursts of {self.per_key.burst}) with this API key"
+            await problem_response(too_many(why, over))(scope, receive, send)
             return
         if self.per_ip is None:
             await self.app(scope, receive, send)
