@@ -29,7 +29,8 @@ Trajectory = TrajectoryLike | tuple[Sequence[int], Sequence[int]]
 
 @dataclass(frozen=True)
 class JobState:
-    """A job's status, its progress step (None before the first) and its error when it failed."""
+    """A job's status, its progress step (None before the first), its error when it failed and, once it
+    succeeded, how far its task rewards were shrunk toward the baseline."""
 
     id: str
     status: str
@@ -42,6 +43,9 @@ class JobState:
     """The attempt the status and step belong to (0 before the first)."""
     updated_at: datetime | None = None
     """When the status last changed."""
+    shrinkage: float | None = None
+    """Once succeeded: the λ of each task reward = baseline + λ·(learned task reward − baseline), chosen by
+    held-out likelihood (1: as learned, 0.5: half-way to the baseline); None before, and with ``maxent``."""
 
     @property
     def finished(self) -> bool:
@@ -75,6 +79,7 @@ class JobState:
             finished_at=when(body.get("finished_at")),
             attempt=int(body.get("attempts") or 0),
             updated_at=when(body.get("updated_at")),
+            shrinkage=body.get("shrinkage"),
         )
 
 

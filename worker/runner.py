@@ -208,8 +208,9 @@ def store_results(
     tasks: Sequence[TaskData] = (),
 ) -> None:
     """Write every reward, value and policy, with each reward's spread across the ensemble's members and
-    the evidence the demonstrations of ``tasks`` give per state (none without tasks), and the fit's
-    per-step history, and mark the job succeeded, in one transaction, if still owned."""
+    the evidence the demonstrations of ``tasks`` give per state (none without tasks), the fit's per-step
+    history and its shrinkage λ (none with maxent, which learns no baseline to shrink toward), and mark the
+    job succeeded, in one transaction, if still owned."""
     n_actions = result.policies.shape[2]
     base_evidence, task_evidence = tasks_evidence(tasks) if tasks else (None, [None] * len(result.rewards))
     with make_session() as session:
@@ -220,7 +221,11 @@ def store_results(
             JobStatus.RUNNING,
             JobStatus.SUCCEEDED,
             where=owned_by(attempt),
-            values={"best_step": result.best_step, **progress_values(last)},
+            values={
+                "best_step": result.best_step,
+                "shrinkage": None if result.config.method == "maxent" else result.shrinkage,
+                **progress_values(last),
+            },
             message=f"finished after {len(result.history)} steps (kept step {result.best_step})",
         )
         if done is None:

@@ -99,6 +99,7 @@ class JobOut(Resource):
                     "max_attempts": 3,
                     "cancel_requested": False,
                     "best_step": None,
+                    "shrinkage": None,
                     "updated_at": "2026-01-05T10:05:15Z",
                     "started_at": "2026-01-05T10:05:01Z",
                     "finished_at": None,
@@ -117,6 +118,14 @@ class JobOut(Resource):
     max_attempts: int
     cancel_requested: bool
     best_step: int | None = Field(description="The step whose parameters were kept (when succeeded).")
+    shrinkage: float | None = Field(
+        description="How far the task rewards were pulled toward the baseline: each task reward returned is "
+        "baseline + λ·(learned task reward − baseline), λ ∈ {0, 0.25, 0.5, 0.75, 1} chosen by held-out "
+        "likelihood (`config.shrink_deviations`). 1: the task rewards as learned (also where no choice is "
+        "made: `shrink_deviations` false, `sharing` none, no hold-out, or over 2^17 task-states); 0.5: half-way "
+        "to the baseline; 0: every task gets the baseline. Null until the job succeeds, with `maxent`, and for "
+        "jobs that succeeded before λ was kept.",
+    )
     updated_at: datetime
     started_at: datetime | None
     finished_at: datetime | None

@@ -8,6 +8,7 @@ embedded broker as the real queue (time moves on through the reaper's ``now``).
 from __future__ import annotations
 
 import threading
+from dataclasses import replace
 from datetime import timedelta
 
 import numpy as np
@@ -186,6 +187,18 @@ def test_only_the_attempt_that_owns_the_job_can_store_results(
     assert [t["task_id"] for t in rewards["tasks"]] == job.task_ids
     history = client.get(f"/v1/jobs/{job_id}/history", headers=auth).json()
     assert (history["source"], history["attempt"], len(history["points"])) == ("steps", 2, 4)
+
+
+def test_stored_results_keep_the_shrinkage_of_a_meta_irl_fit_and_none_of_maxent(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    """Maxent learns no baseline to shrink toward: its λ (1 by the engine's default) is not a choice made."""
+    for config, expected in ((FitConfig(), 0.25), (FitConfig(method="maxent"), None)):
+        job_id = running_job(app, client, auth, stale=False)
+        result = replace(fake_result(2), config=config, shrinkage=0.25)
+        store_results(app.state.sessionmaker, job_id, 1, result=result)
+        job = client.get(f"/v1/jobs/{job_id}", headers=auth).json()
+        assert (job["status"], job["shrinkage"]) == ("succeeded", expected)
 
 
 def test_monitor_passes_a_cancel_request_to_the_fit(

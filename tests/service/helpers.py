@@ -124,12 +124,13 @@ def store_results(
     n_actions: int,
     uncertainty: list[np.ndarray] | None = None,
     evidence: list[np.ndarray] | None = None,
+    shrinkage: float | None = None,
 ) -> list[str]:
     """Mark `job_id` succeeded with these rewards, as the worker would (no worker needed); their ids.
 
     Rows: the baseline, then one per task of the job in its order, each task with a value function
     (twice its reward) and a uniform policy; ``uncertainty`` and ``evidence``, where given, one array per row;
-    and a three-step loss history.
+    a three-step loss history; and the job's ``shrinkage`` λ.
     """
     with app.state.sessionmaker() as session:
         job = session.get_one(Job, job_id)
@@ -156,6 +157,7 @@ def store_results(
         ]
         add_step_history(session, job_id, job.attempts, steps)
         job.status = JobStatus.SUCCEEDED.value
+        job.shrinkage = shrinkage
         session.commit()
         return ids
 

@@ -9,11 +9,21 @@ from alembic import command
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
 from alembic.script import ScriptDirectory
-from sqlalchemy import inspect
+from sqlalchemy import func, inspect, select
 
 import service.store.models
 from service.settings import Settings
-from service.store.db import alembic_config, head_revision, is_current, make_engine, migrate
+from service.store.db import (
+    alembic_config,
+    head_revision,
+    is_current,
+    make_engine,
+    make_sessionmaker,
+    migrate,
+)
+from service.store.models.demonstrators import Demonstrator
+from service.store.models.jobs import Job, JobEvent
+from service.store.models.labs import Lab
 
 
 def test_migrations_match_the_models(settings: Settings) -> None:
@@ -74,4 +84,41 @@ def test_the_head_read_from_the_files_is_alembics_and_a_current_database_is_left
     assert not is_current(engine)
     migrate(engine)
     assert is_current(engine)
+    engine.dispose()
+
+
+def test_removing_the_shrinkage_column_keeps_every_jobs_rows(empty_database_url: str) -> None:
+    """Going down from ``0012_shrinkage`` drops the column in place: a copy of the jobs table (SQLite's batch
+    mode) would delete every job's events, rewards and steps with the old table."""
+    engine = make_engine(Settings(database_url=empty_database_url))
+    migrate(engine)
+    job = Job(
+        id="job_migrations",
+        lab_id="lab_migrations",
+        demonstrator_id="dem_migrations",
+        task_ids=[],
+        config={},
+        max_attempts=1,
+        shrinkage=0.5,
+    )
+    rows = [
+        Lab(id="lab_migrations", name="migrations"),
+        Demonstrator(id="dem_migrations", lab_id="lab_migrations", name="d"),
+        job,
+        JobEvent(job_id=job.id, kind="status", attempt=1),
+    ]
+    with make_sessionmaker(engine)() as session:
+        for row in rows:  # parents first: the models declare no relationships to order them by
+            session.add(row)
+            session.flush()
+        session.commit()
+    with engine.connect() as connection:
+        command.downgrade(alembic_config(connection), "0011_step_history")
+        connection.commit()
+    assert "shrinkage" not in {c["name"] for c in inspect(engine).get_columns("jobs")}
+    with engine.connect() as connection:
+        assert connection.execute(select(func.count()).select_from(JobEvent.__table__)).scalar_one() == 1
+    migrate(engine)
+    with make_sessionmaker(engine)() as session:
+        assert session.get_one(Job, "job_migrations").shrinkage is None
     engine.dispose()

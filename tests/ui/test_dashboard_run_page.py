@@ -70,7 +70,19 @@ def listed(page: Page) -> list[str]:
     ]
 
 
-def test_run_page_draws_the_loss_curve_settings_and_best_step_of_a_job(demo: Demo, browser: Browser) -> None:
+PULLED = {
+    0.0: "every task reward is the baseline",
+    0.25: "task rewards pulled three quarters of the way to the baseline",
+    0.5: "task rewards pulled half-way to the baseline",
+    0.75: "task rewards pulled a quarter of the way to the baseline",
+    1.0: "task rewards as learned",
+}
+"""What the run page says of each shrinkage λ the engine chooses from."""
+
+
+def test_run_page_draws_the_loss_curve_settings_best_step_and_shrinkage_of_a_job(
+    demo: Demo, browser: Browser
+) -> None:
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     job_id = demo.ids["run"]
     history = ok(demo.http.get(f"/v1/jobs/{job_id}/history"), 200)
@@ -95,6 +107,10 @@ def test_run_page_draws_the_loss_curve_settings_and_best_step_of_a_job(demo: Dem
     assert {"loss", "irl_loss", "sharing_loss"} <= set(series)
     assert curve.locator("path[data-series='loss']").evaluate("p => p.getTotalLength()") > 100
     assert curve.locator("[data-role='best-step']").count() == 1
+    shrinkage = job["shrinkage"]
+    assert page.locator("#run-facts [data-role='shrinkage']").inner_text() == (
+        f"λ {shrinkage:g} ({PULLED[shrinkage]})"
+    )
     settings = page.locator("#run-config tr[data-setting]").evaluate_all(
         "rs => rs.map(r => r.dataset.setting)"
     )

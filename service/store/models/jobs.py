@@ -75,6 +75,9 @@ class Job(ProgressColumns, CreatedAtMixin, Base):
     error: Mapped[str | None] = mapped_column(Text)
 
     best_step: Mapped[int | None] = mapped_column(Integer)
+    shrinkage: Mapped[float | None] = mapped_column(Float)
+    """The λ that pulled the task rewards toward the baseline (`FitResult.shrinkage`); null until succeeded,
+    for maxent, and for jobs that succeeded before it was kept."""
 
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(UTCDateTime())

@@ -1338,13 +1338,14 @@ async function loadStepHistory(id) {
 function renderRun(job, previous) {
   $("run-title").textContent = `Run ${job.id}`;
   $("run-status").replaceChildren(el("span", { class: `badge ${job.status}`, "data-role": "status" }, job.status));
-  const fact = (name, value) => [el("dt", {}, name), el("dd", {}, value)];
+  const fact = (name, value, attrs = {}) => [el("dt", {}, name), el("dd", attrs, value)];
   const p = job.progress;
   $("run-facts").replaceChildren(
     ...fact("demonstrator", demonstratorName(job.demonstrator_id)),
     ...fact("tasks", job.task_ids.map((t) => taskName(job.demonstrator_id, t)).join(", ")),
     ...fact("steps", p ? `${p.step} of ${p.max_steps}` : "–"),
     ...fact("best step", job.best_step ?? "–"),
+    ...fact("shrinkage", shrinkageText(job.shrinkage), { "data-role": "shrinkage", title: SHRINKAGE_TITLE }),
     ...fact("attempts", `${job.attempts} of ${job.max_attempts}`),
     ...fact("created", when(job.created_at)),
     ...fact("started", when(job.started_at)),
@@ -1361,6 +1362,15 @@ function renderRun(job, previous) {
   const succeeded = job.status === "succeeded";
   if (succeeded && (!previous || previous.status !== "succeeded" || !$("downloads").firstChild)) renderDownloads(job);
   if (!succeeded) $("downloads").replaceChildren(el("p", { class: "empty" }, downloadsLater(job)));
+}
+
+const SHRINKAGE_TITLE = "Each task reward is the baseline + λ·(the task's learned reward − the baseline), λ chosen by held-out likelihood (config shrink_deviations)";
+
+// The λ that pulled a job's task rewards toward the baseline, in words ("–" before success and with maxent).
+function shrinkageText(shrinkage) {
+  if (shrinkage === null || shrinkage === undefined) return "–";
+  const pulled = { 0: "every task reward is the baseline", 0.25: "task rewards pulled three quarters of the way to the baseline", 0.5: "task rewards pulled half-way to the baseline", 0.75: "task rewards pulled a quarter of the way to the baseline", 1: "task rewards as learned" }[shrinkage];
+  return `λ ${shrinkage}` + (pulled ? ` (${pulled})` : "");
 }
 
 function downloadsLater(job) {
