@@ -29,6 +29,7 @@ const state = {
   swayCall: 0, // bumped by each showSway, so an earlier call's late answers never redraw the sway panel
   listTimer: null,
   generation: 0, // bumped when the key changes, so late answers for the old key are dropped
+  jobsRequests: 0, // job-list requests made: only the answer to the latest is drawn
   resultsCall: 0, // bumped by each showResults, so an earlier call's late answers never redraw the results
   motionCall: 0, // the same for showMotion
   comparisonCall: 0, // the same for showComparison
@@ -283,8 +284,10 @@ function demonstratorName(id) {
 // ---- jobs ----------------------------------------------------------------------------------------
 
 async function loadJobs(generation) {
+  const ticket = ++state.jobsRequests;
   const { jobs, nextCursor } = await jobsPage();
-  if (generation !== state.generation) return;
+  // Only the latest request draws: a slower answer for a page or filter left since must not overwrite it.
+  if (generation !== state.generation || ticket !== state.jobsRequests) return;
   state.nextCursor = nextCursor;
   renderPager();
   dropRowsNotIn(new Set(jobs.map((j) => j.id)));
@@ -500,7 +503,7 @@ async function onEvent(id, event) {
 
 async function refreshJob(id) {
   const job = await getJson(`/v1/jobs/${encodeURIComponent(id)}`);
-  updateJob(job);
+  if (state.rows.has(id)) updateJob(job); // a job whose row the list dropped meanwhile stays off the page
   return job;
 }
 
