@@ -83,6 +83,11 @@ FAMILIES: dict[str, Family] = {
     "multi-objectworld-bonus3": Family(
         lambda i: make_objectworld(seed=200 + i)[0], multi=True, demos=(3, 10), goal_bonus=3.0
     ),
+    # Tuning twin of the frozen family: the same generator (discrete features, wind 0.1) on seeds < 10000,
+    # for measuring and choosing what the discrete features need without touching the frozen worlds.
+    "multi-objectworld-discrete": Family(
+        lambda i: make_objectworld(seed=400 + i, discrete=True, wind=0.1)[0], multi=True, demos=(3, 10)
+    ),
     # Frozen: discrete features, calmer wind, its own seeds; only reported, never used to choose anything.
     "multi-objectworld-discrete (frozen)": Family(
         lambda i: make_objectworld(seed=FROZEN_SEED + i, discrete=True, wind=0.1)[0],
