@@ -47,7 +47,11 @@ def out_of_bounds(value: float, limits: Mapping[str, float]) -> str | None:
 
 @dataclass(frozen=True, kw_only=True)
 class FitConfig:
-    """How to learn rewards from one demonstrator's tasks (defaults are the recommended settings)."""
+    """How to learn rewards from one demonstrator's tasks (defaults are the recommended settings).
+
+    Whatever the settings, the networks see only the MDP's feature columns that vary over the states: a
+    constant column carries nothing, and in the first layer acts as a copy of the bias that Adam steps on its
+    own (`fit.varying_columns`, docs/method.md "Constant feature columns")."""
 
     method: Method = "meta_irl"
     """``meta_irl``: the paper's VR-function method with reward sharing; ``maxent``: tabular

@@ -285,8 +285,22 @@ def sharing_blocks(mdps: Sequence[MDP], n_blocks: int, *, seed: int) -> list[np.
 
 
 def _encode(features: np.ndarray, config: FitConfig) -> torch.Tensor:
-    """Network inputs from state features: the raw columns and their Fourier waves (`fourier_octaves`)."""
-    return torch.from_numpy(fourier_features(np.ascontiguousarray(features), octaves=config.fourier_octaves))
+    """Network inputs from state features: the varying columns (`varying_columns`) and their Fourier waves
+    (`fourier_octaves`)."""
+    kept = np.ascontiguousarray(features[:, varying_columns(features)])
+    return torch.from_numpy(fourier_features(kept, octaves=config.fourier_octaves))
+
+
+def varying_columns(features: np.ndarray) -> np.ndarray:
+    """Indices of the feature columns that are not the same on every state (all of them when none varies).
+
+    A column constant over the states tells the networks nothing, yet each such column is one more copy of
+    the first layer's bias, and Adam steps every copy by about the learning rate: k of them move that bias k
+    times as fast as the real one. Objectworld's discrete features ("distance < d" for d = 1 … N) hold
+    84–95 columns of ones out of 128 (docs/method.md, "Constant feature columns").
+    """
+    varying = np.flatnonzero((features != features[:1]).any(axis=0))
+    return varying if varying.size else np.arange(features.shape[1])
 
 
 def _with_coordinates(
