@@ -81,6 +81,17 @@ def add_demonstrations(
     )
 
 
+def queued_job(client: TestClient, auth: dict[str, str]) -> str:
+    """The id of a job submitted for a new demonstrator's one demonstrated task (queued; no worker runs it)."""
+    task = make_task(client, auth)
+    add_demonstrations(client, auth, task["id"])
+    return str(
+        created(
+            client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
+        )["id"]
+    )
+
+
 def store_reward(app: FastAPI, *, job_id: str, shape: dict[str, Any]) -> str:
     """A learned-reward row for `job_id`, written straight to the database (no worker needed); its id."""
     with app.state.sessionmaker() as session:

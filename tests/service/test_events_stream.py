@@ -27,7 +27,7 @@ from service.store.models.base import utcnow
 from service.store.models.job_status import JobStatus
 from service.store.models.jobs import JobEvent
 from tests.served import free_port
-from tests.service.helpers import add_demonstrations, created, make_task
+from tests.service.helpers import created, queued_job
 from tests.service.live import serving
 
 SSE = {"Accept": "text/event-stream"}
@@ -36,11 +36,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 def finished_job(app: FastAPI, client: TestClient, auth: dict[str, str]) -> str:
     """A job that was claimed, reported two progress points and succeeded (written as the worker would)."""
-    task = make_task(client, auth)
-    add_demonstrations(client, auth, task["id"])
-    job_id = created(
-        client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
-    )["id"]
+    job_id = queued_job(client, auth)
     with app.state.sessionmaker() as session:
         attempt = claim(session, job_id)
         assert attempt == 1
@@ -137,11 +133,7 @@ def test_a_running_jobs_stream_delivers_new_events_and_ends_at_the_final_status(
     import threading
     import time
 
-    task = make_task(client, auth)
-    add_demonstrations(client, auth, task["id"])
-    job_id = created(
-        client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
-    )["id"]
+    job_id = queued_job(client, auth)
 
     def finish_later() -> None:
         time.sleep(1.0)
@@ -175,11 +167,7 @@ def test_client_wait_follows_the_stream_and_falls_back_to_polling(
 
     from metairl_client import Client
 
-    task = make_task(client, auth)
-    add_demonstrations(client, auth, task["id"])
-    job_id = created(
-        client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
-    )["id"]
+    job_id = queued_job(client, auth)
 
     def finish_later() -> None:
         time.sleep(1.0)
@@ -260,11 +248,7 @@ def test_client_wait_on_a_running_job_does_not_draw_the_history_its_snapshot_alr
 
 def running_job(app: FastAPI, client: TestClient, auth: dict[str, str]) -> str:
     """A job a worker claimed and that has not ended (its stream stays open)."""
-    task = make_task(client, auth)
-    add_demonstrations(client, auth, task["id"])
-    job_id = created(
-        client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
-    )["id"]
+    job_id = queued_job(client, auth)
     with app.state.sessionmaker() as session:
         claim(session, job_id)
         session.commit()

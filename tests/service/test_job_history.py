@@ -17,7 +17,7 @@ from service.store.histories import add_step_history
 from service.store.models.base import utcnow
 from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, JobEvent
-from tests.service.helpers import add_demonstrations, created, make_task
+from tests.service.helpers import queued_job
 from tests.service.test_events_stream import finished_job
 
 
@@ -166,11 +166,7 @@ def test_the_steps_of_an_earlier_attempt_are_not_the_latest_curve(
 def test_a_cancelled_or_failed_job_keeps_the_progress_samples_it_had(
     app: FastAPI, client: TestClient, auth: dict[str, str], status: JobStatus
 ) -> None:
-    task = make_task(client, auth)
-    add_demonstrations(client, auth, task["id"])
-    job_id = created(
-        client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
-    )["id"]
+    job_id = queued_job(client, auth)
     with app.state.sessionmaker() as session:
         attempt = claim(session, job_id)
         assert attempt is not None
