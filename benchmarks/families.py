@@ -61,6 +61,10 @@ EARLIER = "features-only"
 """The engine before `FitConfig.task_coordinates` (task networks saw the MDP's features alone): its rows
 stay in the cache and on the page, for before/after."""
 
+WORLDS = 6
+"""Worlds per family in the table: one world's Pearson margin over none ranges from about +0.04 to +0.19 on
+the discrete tuning family, so three worlds leave its mean uncertain by about ±0.04."""
+
 N_TASKS = 8
 GOAL_BONUS = 10.0
 """Goal bonus of the multi-task forms: at γ = 0.9 a smaller one loses to a nearby +1 region (with +3 only
@@ -206,12 +210,17 @@ def table(rows: list[dict[str, Any]], variants: list[str], worlds: int, engine: 
     head = (
         " | ".join(f"{v} Pearson" for v in variants) + " | " + " | ".join(f"{v} EVD/rand" for v in variants)
     )
-    lines = [f"| family | demos | {head} | {' | '.join(f'{v} EPIC' for v in variants)} | worlds |"]
-    lines.append("| --- " * (3 + 3 * len(variants)) + "|")
+    paired = "default" in variants and "none" in variants
+    margin_head = " | default − none Pearson (± s.e.)" if paired else ""
+    lines = [
+        f"| family | demos | {head} | {' | '.join(f'{v} EPIC' for v in variants)}{margin_head} | worlds |"
+    ]
+    lines.append("| --- " * (3 + 3 * len(variants) + paired) + "|")
     for name, family in FAMILIES.items():
         for demos in family.demos:
             cells: dict[str, list[str]] = {"pearson": [], "evd_random": [], "epic": []}
             counts = set()
+            pearsons: dict[str, dict[int, float]] = {}
             for v in variants:
                 sel = [
                     r
@@ -222,13 +231,24 @@ def table(rows: list[dict[str, Any]], variants: list[str], worlds: int, engine: 
                     and r["world"] < worlds
                 ]
                 counts.add(len(sel))
+                pearsons[v] = {r["world"]: r["pearson"] for r in sel}
                 for k in cells:
                     cells[k].append(f"{np.mean([r[k] for r in sel]):.3f}" if sel else "—")
+            margin = f" | {paired_margin(pearsons['default'], pearsons['none'])}" if paired else ""
             lines.append(
                 f"| {name} | {demos} | {' | '.join(cells['pearson'])} | {' | '.join(cells['evd_random'])} | "
-                f"{' | '.join(cells['epic'])} | {'/'.join(str(c) for c in sorted(counts))} |"
+                f"{' | '.join(cells['epic'])}{margin} | {'/'.join(str(c) for c in sorted(counts))} |"
             )
     return "\n".join(lines)
+
+
+def paired_margin(a: dict[int, float], b: dict[int, float]) -> str:
+    """Mean over the worlds both have of a − b, ± its standard error (worlds differ far more than the configs
+    do on one world, so the margin is taken world by world); "—" without two such worlds."""
+    diffs = np.array([a[w] - b[w] for w in sorted(a.keys() & b.keys())])
+    if len(diffs) < 2:
+        return "—"
+    return f"{diffs.mean():+.3f} ± {diffs.std(ddof=1) / np.sqrt(len(diffs)):.3f}"
 
 
 def main() -> None:
@@ -237,7 +257,7 @@ def main() -> None:
     parser.add_argument("--variants", nargs="*", default=list(TABLE_VARIANTS), choices=list(VARIANTS))
     parser.add_argument("--families", nargs="*", default=list(FAMILIES), choices=list(FAMILIES))
     parser.add_argument("--demos", nargs="*", type=int, default=None, help="only these demonstration counts")
-    parser.add_argument("--worlds", type=int, default=3)
+    parser.add_argument("--worlds", type=int, default=WORLDS)
     parser.add_argument("--table", action="store_true", help="only print the table from the cache")
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -320,13 +340,19 @@ DISCRETE_FINDINGS = """### Discrete features (engine `varying-columns` against `
   features without a constant column are unchanged bit for bit (every other family; multi-objectworld and
   multi-binaryworld at 3 demonstrations, world 0, refitted: identical Pearson, EVD, steps and λ), so their
   rows are carried over (`carried_from`). On the tuning family at 3 demonstrations the default goes from
-  0.136 / 0.297 to 0.193 / 0.232 (none 0.077 → 0.106, maxent 0.143 / 0.185): +0.087 over none, short of the
-  +0.10 target there, with a third of none's value lost. Its baseline correlates 0.24, 0.10, 0.32 with the
-  world reward, no better than none's mean of the task rewards (0.30, 0.10, 0.25). At 10: 0.401 / 0.124
-  against none's 0.156 / 0.339.
-- The frozen family, run once after the change was fixed: at 3 demonstrations 0.208 / 0.190 against none's
-  0.099 / 0.759 (+0.109; before, 0.129 / 0.308 against 0.093 / 0.802), ahead of maxent's 0.158 in Pearson,
-  behind its 0.135 in value lost. At 10: 0.530 / 0.107 (before 0.399 / 0.151; none 0.176 / 0.307).
+  0.136 / 0.297 to 0.193 / 0.232 on worlds 0–2 (none 0.077 → 0.106, maxent 0.143 / 0.185), with a third of
+  none's value lost. Its baseline correlates 0.24, 0.10, 0.32 with the world reward, no better than none's
+  mean of the task rewards (0.30, 0.10, 0.25). At 10: 0.401 / 0.124 against none's 0.156 / 0.339.
+- Worlds differ more than configs do: on worlds 0–5 the default's margin over none is +0.056, +0.036,
+  +0.169, +0.193, +0.071 and +0.133, so three worlds (+0.087) left the mean uncertain by about ±0.04; the
+  table takes six worlds and gives the margin world by world with its standard error: +0.110 ± 0.026 at 3
+  demonstrations. L2 sharing instead of Huber, the lead on worlds 0–2 (0.214 against 0.193), gives 0.200
+  against the default's 0.202 on worlds 0–5 (`--variants l2`), so the default keeps Huber.
+- The frozen family, run once after the change was fixed (worlds 0–2): at 3 demonstrations 0.208 / 0.190
+  against none's 0.099 / 0.759 (+0.109; before, 0.129 / 0.308 against 0.093 / 0.802), ahead of maxent's
+  0.158 in Pearson, behind its 0.135 in value lost. At 10: 0.530 / 0.107 (before 0.399 / 0.151; none
+  0.176 / 0.307). On worlds 0–5 (the table), with nothing chosen since: 0.224 / 0.229 against none's 0.106 /
+  0.714 (+0.118 ± 0.010) at 3, 0.481 / 0.094 against 0.177 / 0.324 at 10.
 """
 """What the discrete-feature measurements say (written by hand from the tables; keep it in step with them)."""
 
