@@ -283,12 +283,12 @@ def agreement(
     [offset, …]}) covers all eight directions, against the path-bend levels (`bend_levels` of the mean
     offsets) (docs/motion.md, "Does the learned readout agree").
 
-    ``disagrees``: ρ with the reach or with the bend significantly below 0 (exact permutation p ≤ `ALPHA` and
-    a bootstrap interval over repetitions below 0), or the direction the readout favours most is the one
-    reached least, its 95 % interval below every other direction's (or the one it favours least is reached
-    most). ``agrees``: ρ with one of them significantly above 0 and ρ with the other not below 0. Else
-    ``undetermined``; with fewer than `MIN_DIRECTIONS` directions that have a learned value and movements,
-    always.
+    ``disagrees``: the readout runs against the reach or the bend (`_Evidence.contradiction`: ρ significantly
+    below 0, exact permutation p ≤ `ALPHA` and a bootstrap interval over repetitions below 0; or its favourite
+    direction clearly lowest, or its least favoured clearly highest). ``agrees``: ρ with one of them
+    significantly above 0, and neither against it (`_Evidence.endorses`: ρ ≥ 0 and its favourite direction not
+    the lowest). Else ``undetermined``; with fewer than `MIN_DIRECTIONS` directions that have a learned value
+    and movements, always. Without ``offsets`` for all eight directions the reach decides alone.
     """
     names = [d for d in DIRECTION_NAMES if learned.get(d) is not None and len(reach.get(d, ())) > 0]
     n = len(names)
