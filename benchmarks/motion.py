@@ -53,7 +53,13 @@ from metairl_engine.fit import FitResult, Progress, TaskData, fit
 from metairl_engine.grids import DIRECTION_NAMES, grid_mdp, velocity_coords
 from metairl_engine.metrics import pearson
 from metairl_engine.motion.kinematics import compare_recordings, comparison_png, movements
-from metairl_engine.motion.readout import agreement, direction_readout, path_bend, ring_centred
+from metairl_engine.motion.readout import (
+    agreement,
+    direction_readout,
+    path_bend,
+    path_offsets,
+    ring_centred,
+)
 from metairl_engine.motion.recording import DiscretiseSettings, demonstrations
 from metairl_engine.sim.controller_patient import ControllerSettings, simulate_controller_patient
 from metairl_engine.sim.patient import (
@@ -581,7 +587,8 @@ and never used to choose anything."""
 
 def agreement_one(patient: Any, session: str) -> dict[str, Any]:
     """Fit one session with the default config; the learned per-direction readout, the same readout of the
-    patient's true preference (``ideal_reward``), their Spearman, and the verdict against the peak reach."""
+    patient's true preference (``ideal_reward``), their Spearman, and the verdict against the peak reach and
+    the path bend (and, beside it, the verdict the reach alone gives)."""
     w, h = patient.width, patient.height
     rec = patient.sessions[session]
     demos = demonstrations(rec, discretise_settings=DiscretiseSettings(width=w, height=h))
@@ -598,7 +605,8 @@ def agreement_one(patient: Any, session: str) -> dict[str, Any]:
     reach: dict[str, list[float]] = {}
     for m in movements(rec):
         reach.setdefault(m.direction, []).append(m.peak_reach)
-    verdict = agreement(learned, reach)
+    offsets = path_offsets({d: [t.states for t in demos.by_label[d]] for d in directions}, width=w, height=h)
+    verdict = agreement(learned, reach, offsets=offsets)
     both = [d for d in directions if d in reach]
     return {
         "truth_reach": float(spearmanr([truth[d] for d in both], [np.mean(reach[d]) for d in both])[0]),
@@ -614,7 +622,9 @@ def agreement_one(patient: Any, session: str) -> dict[str, Any]:
         if bend
         else None,
         "verdict": verdict.verdict,
+        "verdict_reach_alone": agreement(learned, reach).verdict,
         "spearman_reach": verdict.spearman,
+        "spearman_bend": verdict.bend_spearman,
         "detail": verdict.detail,
         "wall_s": wall,
     }
@@ -642,7 +652,7 @@ def agreement_main(argv: list[str]) -> None:
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "MOTION.md")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    rows, claims, right = [], 0, 0
+    rows, claims, right, alone_claims, alone_right = [], 0, 0, 0, 0
     for name in args.patients:
         weak = AGREEMENT_PATIENTS[name]
         patient = (
@@ -657,12 +667,15 @@ def agreement_main(argv: list[str]) -> None:
             print(f"{name} {session}: {json.dumps(found)}", flush=True)
             claims += found["verdict"] != "undetermined"
             right += verdict_correct(found["verdict"], found["spearman_truth"]) == "yes"
-            bend = found["spearman_bend_truth"]
+            alone_claims += found["verdict_reach_alone"] != "undetermined"
+            alone_right += verdict_correct(found["verdict_reach_alone"], found["spearman_truth"]) == "yes"
+            bend, vs_bend = found["spearman_bend_truth"], found["spearman_bend"]
             rows.append(
                 f"| {name} | {session} | {found['spearman_truth']:+.2f} | {found['spearman_reach']:+.2f} | "
-                f"{found['truth_reach']:+.2f} | {'–' if bend is None else f'{bend:+.2f}'} | "
-                f"{found['verdict']} | {verdict_correct(found['verdict'], found['spearman_truth'])} | "
-                f"{found['wall_s']:.0f} s |"
+                f"{'–' if vs_bend is None else f'{vs_bend:+.2f}'} | {found['truth_reach']:+.2f} | "
+                f"{'–' if bend is None else f'{bend:+.2f}'} | {found['verdict']} | "
+                f"{verdict_correct(found['verdict'], found['spearman_truth'])} | {found['verdict_reach_alone']} | "
+                f"{verdict_correct(found['verdict_reach_alone'], found['spearman_truth'])} | {found['wall_s']:.0f} s |"
             )
     text = [
         "## Does the learned readout agree with the recordings?",
@@ -671,19 +684,21 @@ def agreement_main(argv: list[str]) -> None:
         "default config, gamma 0.9, on the service's out-and-back segments. **vs truth**: Spearman of the learned "
         "per-direction readout (`direction_readout` of the baseline, the service's `baseline_ring_centred`) "
         "with the same readout of the patient's true preference (`ideal_reward`). **vs reach**: Spearman of the "
-        "learned readout with the mean peak reach, which the verdict (`agreement`, docs/motion.md) tests; **truth vs "
-        "reach**: how well the reach ranks the true preference (what the rule assumes); **path bend vs truth**: "
-        "Spearman of the model-free `path_bend` readout (the service's `path_bend`, docs/motion.md) with the "
-        "truth. A verdict is right when `agrees` goes with ρ(truth) > 0 and `disagrees` with ρ(truth) < 0.",
+        "learned readout with the mean peak reach and **vs bend** with the path-bend levels of the mean "
+        "per-repetition bend, the two the verdict (`agreement`, docs/motion.md) tests; **truth vs reach**: how "
+        "well the reach ranks the true preference; **path bend vs truth**: Spearman of the model-free "
+        "`path_bend` readout (the service's `path_bend`, docs/motion.md) with the truth. **reach alone**: the "
+        "verdict that tests the reach only, for comparison. A verdict is right when `agrees` goes with "
+        "ρ(truth) > 0 and `disagrees` with ρ(truth) < 0.",
         "",
-        "| patient | session | vs truth | vs reach | truth vs reach | path bend vs truth | verdict | verdict right "
-        "| wall |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| patient | session | vs truth | vs reach | vs bend | truth vs reach | path bend vs truth | verdict "
+        "| verdict right | reach alone | reach alone right | wall |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
         *rows,
         "",
-        f"Verdict accuracy: {claims} claim(s) in {len(rows)} sessions, {right} right; `undetermined` "
-        f"({len(rows) - claims}) claims nothing and tells the user not to read the learned ranking as the "
-        "patient's preference.",
+        f"Verdict accuracy: {claims} claim(s) in {len(rows)} sessions, {right} right (reach alone: "
+        f"{alone_claims} claim(s), {alone_right} right); `undetermined` ({len(rows) - claims}) claims nothing "
+        "and tells the user not to read the learned ranking as the patient's preference.",
     ]
     write_block(args.out, "agreement", "\n".join(text))
     print("\n".join(text))

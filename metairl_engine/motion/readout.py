@@ -12,7 +12,7 @@ docs/motion.md (identifiability) and benchmarks/MOTION.md measure it.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from itertools import permutations
 from typing import Literal
@@ -56,6 +56,27 @@ def direction_readout(
     return {d: float(centred[np.asarray(v, dtype=np.int64)].mean()) for d, v in visited.items() if len(v)}
 
 
+def _offset(states: np.ndarray, k: int, *, width: int, height: int) -> float:
+    """Mean signed offset, in cells and positive counter-clockwise, of the cells of ``states`` (velocity-grid
+    state indices) from the instructed line of direction ``k`` (an index into `DIRECTIONS`) through the grid
+    centre."""
+    x, y, _ = velocity_coords(np.asarray(states, dtype=np.int64), width=width, height=height)
+    ux, uy = DIRECTIONS[k] / np.hypot(*DIRECTIONS[k])
+    return float(np.mean(-(x - (width - 1) / 2) * uy + (y - (height - 1) / 2) * ux))
+
+
+def bend_levels(offsets: np.ndarray) -> np.ndarray:
+    """The preference's level per direction from the paths' offsets (..., 8) in `DIRECTION_NAMES` order: the
+    offsets taken as the preference's slopes around the centre, summed between neighbouring directions
+    (trapezoid rule, 45° apart), the loop's closure error spread evenly, the levels centred. Linear, so a
+    bootstrap can apply it to every resample at once. Returns (..., 8)."""
+    slopes = np.asarray(offsets, dtype=np.float64)
+    steps = (slopes + np.roll(slopes, -1, axis=-1)) / 2  # from direction k to k + 1 (45° counter-clockwise)
+    n = slopes.shape[-1]
+    levels = np.cumsum(steps, axis=-1) - steps - np.arange(n) / n * steps.sum(axis=-1, keepdims=True)
+    return np.asarray(levels - levels.mean(axis=-1, keepdims=True))
+
+
 def path_bend(visited: Mapping[str, np.ndarray], *, width: int, height: int) -> dict[str, float]:
     """Per direction, the level of the patient's preference at that direction's path relative to the others,
     read from which way the paths bend (``visited`` {direction: velocity-grid state indices}); empty unless
@@ -63,21 +84,25 @@ def path_bend(visited: Mapping[str, np.ndarray], *, width: int, height: int) -> 
 
     A patient pulled toward what it prefers bends each out-and-back path toward the preferred side, so the
     mean signed offset of a path's cells from its instructed line (positive counter-clockwise) measures the
-    preference's slope around the centre at that direction. Summing the slopes of neighbouring directions
-    (trapezoid rule, 45° apart) around the circle gives each direction's level up to a constant; the loop's
-    closure error, spread evenly, is removed and the levels are centred. Model-free: it uses the paths only,
-    no fit (docs/motion.md, "Path bend")."""
+    preference's slope around the centre at that direction; `bend_levels` integrates the slopes around the
+    circle. Model-free: it uses the paths only, no fit (docs/motion.md, "Path bend")."""
     if any(len(visited.get(d, ())) == 0 for d in DIRECTION_NAMES):
         return {}
-    slopes = np.empty(len(DIRECTION_NAMES))
-    for k, d in enumerate(DIRECTION_NAMES):
-        x, y, _ = velocity_coords(np.asarray(visited[d], dtype=np.int64), width=width, height=height)
-        ux, uy = DIRECTIONS[k] / np.hypot(*DIRECTIONS[k])
-        slopes[k] = np.mean(-(x - (width - 1) / 2) * uy + (y - (height - 1) / 2) * ux)
-    steps = (slopes + np.roll(slopes, -1)) / 2  # from direction k to k + 1 (45° counter-clockwise)
-    levels = np.concatenate([[0.0], np.cumsum(steps)[:-1]]) - np.arange(len(steps)) / len(steps) * steps.sum()
-    levels -= levels.mean()
-    return {d: float(levels[k]) for k, d in enumerate(DIRECTION_NAMES)}
+    offsets = [_offset(visited[d], k, width=width, height=height) for k, d in enumerate(DIRECTION_NAMES)]
+    return dict(zip(DIRECTION_NAMES, bend_levels(np.array(offsets)).tolist(), strict=True))
+
+
+def path_offsets(
+    paths: Mapping[str, Sequence[np.ndarray]], *, width: int, height: int
+) -> dict[str, list[float]]:
+    """Per direction, one value per repetition: the mean signed offset of the cells that repetition's path
+    visits (``paths`` {direction: [velocity-grid state indices of one repetition, …]}) from the instructed
+    line, the slope `path_bend` integrates. The verdict (`agreement`) resamples these repetitions."""
+    return {
+        d: [_offset(np.unique(s), k, width=width, height=height) for s in paths[d] if len(s)]
+        for k, d in enumerate(DIRECTION_NAMES)
+        if d in paths
+    }
 
 
 BASELINE_CAVEAT = (
@@ -103,11 +128,15 @@ ALPHA = 0.05
 
 @dataclass(frozen=True)
 class Agreement:
-    """Whether a learned per-direction readout is consistent with the peak reach the recordings show.
+    """Whether a learned per-direction readout is consistent with the recordings: their peak reach and, where
+    all eight directions were moved, which way their paths bend (`path_bend`).
 
     ``spearman``: ρ between the learned values and the mean peak reach across the directions both have
     (None with fewer than `MIN_DIRECTIONS`); ``p_positive`` / ``p_negative``: exact one-sided permutation
-    p-values of that ρ; ``rho_low`` / ``rho_high``: its 95 % bootstrap interval over repetitions."""
+    p-values of that ρ; ``rho_low`` / ``rho_high``: its 95 % bootstrap interval over repetitions. The
+    ``bend_`` fields are the same statistics of ρ between the learned values and the path-bend levels (None
+    where the bend was not checked: fewer than `MIN_DIRECTIONS` directions, or not all eight directions
+    moved)."""
 
     verdict: Verdict
     detail: str
@@ -117,6 +146,37 @@ class Agreement:
     rho_low: float | None = None
     rho_high: float | None = None
     n_directions: int = 0
+    bend_spearman: float | None = None
+    bend_p_positive: float | None = None
+    bend_p_negative: float | None = None
+    bend_rho_low: float | None = None
+    bend_rho_high: float | None = None
+
+
+@dataclass(frozen=True)
+class RankingTest:
+    """Spearman ρ of a learned ranking with one kind of recorded evidence, its exact one-sided permutation
+    p-values, its 95 % bootstrap interval over repetitions, and each direction's evidence value with its
+    interval (``value``, ``low``, ``high``: (n,), in the ranking's direction order)."""
+
+    rho: float
+    p_positive: float
+    p_negative: float
+    rho_low: float
+    rho_high: float
+    value: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+
+    @property
+    def positive(self) -> bool:
+        """ρ > 0 significantly: permutation p ≤ `ALPHA` and the bootstrap interval above 0."""
+        return self.p_positive <= ALPHA and self.rho_low > 0
+
+    @property
+    def negative(self) -> bool:
+        """ρ < 0 significantly: permutation p ≤ `ALPHA` and the bootstrap interval below 0."""
+        return self.p_negative <= ALPHA and self.rho_high < 0
 
 
 def _spearman_rows(ranked_learned: np.ndarray, reach: np.ndarray) -> np.ndarray:
@@ -131,20 +191,104 @@ def _spearman_rows(ranked_learned: np.ndarray, reach: np.ndarray) -> np.ndarray:
         return np.where(denominator > 0, (b @ a) / np.where(denominator > 0, denominator, 1.0), 0.0)
 
 
+def ranking_test(
+    ranked: np.ndarray,
+    samples: Sequence[np.ndarray],
+    evidence: Callable[[np.ndarray], np.ndarray],
+    *,
+    n_boot: int,
+    seed: int,
+) -> RankingTest:
+    """Test the learned ranks ``ranked`` (n,) against evidence computed from repetitions: ``samples`` holds
+    each source's repetitions, ``evidence`` maps the sources' means (..., m) to the n values ranked against
+    (..., n). The permutation p-values are exact (every order of the n values, at most 8! = 40,320); the
+    bootstrap resamples each source's repetitions (``n_boot`` draws, seeded) and recomputes the evidence."""
+    value = evidence(np.array([s.mean() for s in samples]))
+    rho = float(_spearman_rows(ranked, value[None, :])[0])
+    orders = np.array(list(permutations(range(len(value)))))
+    null = _spearman_rows(ranked, value[orders])  # ρ of the learned ranks with the evidence shuffled
+
+    def rho_and_values(*resampled: np.ndarray, axis: int = -1) -> np.ndarray:
+        """ρ with the evidence of the resampled means, then that evidence: (1 + n, resamples)."""
+        means = np.stack(np.broadcast_arrays(*(r.mean(axis=axis) for r in resampled)), axis=-1)
+        values = evidence(means)
+        return np.concatenate([_spearman_rows(ranked, values)[None], np.moveaxis(values, -1, 0)])
+
+    interval = percentile_interval(
+        samples, rho_and_values, n_resamples=n_boot, rng=np.random.default_rng(seed), confidence=1 - ALPHA
+    )
+    point = np.r_[rho, value]
+    low, high = (point, point) if interval is None else interval  # None: no repetitions to resample
+    return RankingTest(
+        rho=rho,
+        p_positive=float((null >= rho - 1e-12).mean()),
+        p_negative=float((null <= rho + 1e-12).mean()),
+        rho_low=float(low[0]),
+        rho_high=float(high[0]),
+        value=value,
+        low=low[1:],
+        high=high[1:],
+    )
+
+
+@dataclass(frozen=True)
+class _Evidence:
+    """One kind of recorded evidence a verdict tests the learned ranking against, with how a sentence names
+    it (``name``) and its low and high ends (``lowest``, ``highest``: "reached least", …)."""
+
+    test: RankingTest
+    name: str
+    lowest: str
+    highest: str
+
+    def summary(self) -> str:
+        """ρ, its interval and its one-sided p-value in the direction of its sign, for a verdict's sentence."""
+        t = self.test
+        p_value = t.p_positive if t.rho >= 0 else t.p_negative
+        return (
+            f"Spearman ρ with the {self.name} {t.rho:+.2f}, bootstrap 95 % interval [{t.rho_low:+.2f}, "
+            f"{t.rho_high:+.2f}], permutation p = {p_value:.3f}"
+        )
+
+    def contradiction(self, values: np.ndarray, names: Sequence[str]) -> str | None:
+        """Why the learned ``values`` (in ``names`` order) run against this evidence, or None: ρ significantly
+        below 0; or the direction favoured most is the one the evidence puts lowest, its 95 % interval below
+        every other direction's (or the one favoured least is put highest, its interval above every other's)."""
+        t = self.test
+        top, bottom = int(np.argmax(values)), int(np.argmin(values))
+        if t.negative:
+            return f"it ranks the directions against the {self.name}"
+        if t.high[top] < np.delete(t.low, top).min():
+            return f"it favours {names[top]} most, the direction {self.lowest} (95 % interval below every other's)"
+        if t.low[bottom] > np.delete(t.high, bottom).max():
+            return f"it favours {names[bottom]} least, the direction {self.highest} (95 % interval above every other's)"
+        return None
+
+    def endorses(self, values: np.ndarray) -> bool:
+        """Not against the learned ``values``: ρ ≥ 0 and the direction favoured most is not the one this
+        evidence puts lowest."""
+        return self.test.rho >= 0 and int(np.argmin(self.test.value)) != int(np.argmax(values))
+
+
 def agreement(
     learned: Mapping[str, float | None],
     reach: Mapping[str, Sequence[float]],
     *,
+    offsets: Mapping[str, Sequence[float]] | None = None,
     n_boot: int = 2000,
     seed: int = 0,
 ) -> Agreement:
     """The verdict on a learned readout ``learned`` {direction: ring-centred baseline} against the peak reach
-    of every repetition ``reach`` {direction: [reach, …]} (docs/motion.md, "Does the learned readout agree").
+    of every repetition ``reach`` {direction: [reach, …]} and, where ``offsets`` (`path_offsets`: {direction:
+    [offset, …]}) covers all eight directions, against the path-bend levels (`bend_levels` of the mean
+    offsets) (docs/motion.md, "Does the learned readout agree").
 
-    ``agrees``: ρ(learned, mean reach) > 0 with exact permutation p ≤ `ALPHA` and a bootstrap interval over
-    repetitions above 0. ``disagrees``: the mirror image (ρ < 0, p ≤ `ALPHA`, interval below 0), or the
-    direction the readout favours most is the one reached least, its 95 % interval below every other
-    direction's (or the one it favours least is reached most, above every other's). Else ``undetermined``.
+    ``disagrees``: the readout runs against the reach or the bend (`_Evidence.contradiction`: ρ significantly
+    below 0, exact permutation p ≤ `ALPHA` and a bootstrap interval over repetitions below 0; or its favourite
+    direction clearly lowest, or its least favoured clearly highest). ``agrees``: ρ with one of them
+    significantly above 0, and neither against it (`_Evidence.endorses`: ρ ≥ 0 and its favourite direction not
+    the lowest). Else ``undetermined``; with fewer than `MIN_DIRECTIONS` directions that have a learned value
+    and movements, always. Without ``offsets`` for all eight directions the reach decides alone.
     """
     names = [d for d in DIRECTION_NAMES if learned.get(d) is not None and len(reach.get(d, ())) > 0]
     n = len(names)
@@ -157,62 +301,69 @@ def agreement(
             n_directions=n,
         )
     values = np.array([float(learned[d]) for d in names])  # type: ignore[arg-type]
-    reps = [np.asarray(reach[d], dtype=np.float64) for d in names]
-    means = np.array([r.mean() for r in reps])
     from scipy.stats import rankdata  # here only, as in `_spearman_rows`
 
     ranked = rankdata(values)
-    rho = float(_spearman_rows(ranked, means[None, :])[0])
-    orders = np.array(list(permutations(range(n))))  # n ≤ 8: at most 40,320 orders, exact
-    null = _spearman_rows(ranked, means[orders])  # ρ of the learned ranks with the reach shuffled
-    p_pos = float((null >= rho - 1e-12).mean())
-    p_neg = float((null <= rho + 1e-12).mean())
-
-    def rho_and_means(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
-        """ρ of the learned ranks with the directions' mean reach, then those means: (1 + n, resamples)."""
-        reach_means = np.stack(np.broadcast_arrays(*(r.mean(axis=axis) for r in samples)), axis=-1)
-        return np.concatenate([_spearman_rows(ranked, reach_means)[None], np.moveaxis(reach_means, -1, 0)])
-
-    interval = percentile_interval(
-        reps, rho_and_means, n_resamples=n_boot, rng=np.random.default_rng(seed), confidence=1 - ALPHA
+    by_reach = ranking_test(
+        ranked,
+        [np.asarray(reach[d], dtype=np.float64) for d in names],
+        lambda means: means,
+        n_boot=n_boot,
+        seed=seed,
     )
-    bounds = (np.r_[rho, means], np.r_[rho, means]) if interval is None else interval  # nothing to resample
-    low, high = float(bounds[0][0]), float(bounds[1][0])
-    lows, highs = bounds[0][1:], bounds[1][1:]
-    found = Agreement("undetermined", "", rho, p_pos, p_neg, low, high, n_directions=n)
-    stats = f"Spearman ρ = {rho:+.2f} over {n} directions, bootstrap 95 % interval [{low:+.2f}, {high:+.2f}]"
-    top, bottom = int(np.argmax(values)), int(np.argmin(values))
-    others_top, others_bottom = np.delete(np.arange(n), top), np.delete(np.arange(n), bottom)
-    if p_pos <= ALPHA and low > 0:
+    by_bend = None
+    if offsets is not None and all(len(offsets.get(d, ())) > 0 for d in DIRECTION_NAMES):
+        chosen = [DIRECTION_NAMES.index(d) for d in names]
+        by_bend = ranking_test(
+            ranked,
+            [np.asarray(offsets[d], dtype=np.float64) for d in DIRECTION_NAMES],
+            lambda means: bend_levels(means)[..., chosen],
+            n_boot=n_boot,
+            seed=seed,
+        )
+    found = Agreement(
+        "undetermined",
+        "",
+        by_reach.rho,
+        by_reach.p_positive,
+        by_reach.p_negative,
+        by_reach.rho_low,
+        by_reach.rho_high,
+        n_directions=n,
+    )
+    if by_bend is not None:
+        found = replace(
+            found,
+            bend_spearman=by_bend.rho,
+            bend_p_positive=by_bend.p_positive,
+            bend_p_negative=by_bend.p_negative,
+            bend_rho_low=by_bend.rho_low,
+            bend_rho_high=by_bend.rho_high,
+        )
+    evidence = [_Evidence(by_reach, "peak reach", "reached least", "reached most")]
+    if by_bend is not None:
+        evidence.append(
+            _Evidence(by_bend, "path bend", "the paths bend least toward", "the paths bend most toward")
+        )
+    stats = f"over {n} directions: " + "; ".join(e.summary() for e in evidence)
+    contradictions = [why for e in evidence if (why := e.contradiction(values, names))]
+    if contradictions:
+        return replace(
+            found,
+            verdict="disagrees",
+            detail=f"The learned readout contradicts the recordings: {'; '.join(contradictions)} ({stats}). It "
+            "is not the patient's preference; read reach and the weak side from the kinematic readout.",
+        )
+    if any(e.test.positive for e in evidence) and all(e.endorses(values) for e in evidence):
         return replace(
             found,
             verdict="agrees",
-            detail=f"The learned readout ranks the directions as their peak reach does ({stats}, permutation "
-            f"p = {p_pos:.3f}): its between-direction differences are consistent with the recordings.",
-        )
-    if p_neg <= ALPHA and high < 0:
-        why = f"it ranks the directions against their peak reach ({stats}, permutation p = {p_neg:.3f})"
-    elif highs[top] < lows[others_top].min():
-        why = (
-            f"it favours {names[top]} most, the direction the patient reaches least (95 % interval of the "
-            f"peak reach below every other direction's)"
-        )
-    elif lows[bottom] > highs[others_bottom].max():
-        why = (
-            f"it favours {names[bottom]} least, the direction the patient reaches most (95 % interval of the "
-            f"peak reach above every other direction's)"
-        )
-    else:
-        return replace(
-            found,
-            detail="Do not read the learned ranking as the patient's preference: the recordings neither "
-            f"confirm nor contradict it ({stats}, one-sided permutation p = {min(p_pos, p_neg):.3f}), and on "
-            "synthetic patients such unconfirmed rankings ran against the true preference about as often as "
-            "with it. Read reach and the weak side from the kinematic readout.",
+            detail=f"The learned readout ranks the directions as the recordings do ({stats}): its "
+            "between-direction differences are consistent with them.",
         )
     return replace(
         found,
-        verdict="disagrees",
-        detail=f"The learned readout contradicts the recordings: {why}. It is not the patient's preference; "
-        "read reach and the weak side from the kinematic readout.",
+        detail="Do not read the learned ranking as the patient's preference: the recordings neither confirm "
+        f"nor contradict it ({stats}), and on synthetic patients such unconfirmed rankings ran against the true "
+        "preference about as often as with it. Read reach and the weak side from the kinematic readout.",
     )

@@ -76,12 +76,14 @@ class LearnedDirection(BaseModel):
 
 
 class Agreement(BaseModel):
-    """Whether the learned per-direction readout is consistent with the recordings' peak reach
-    (docs/motion.md, "Does the learned readout agree with the recordings")."""
+    """Whether the learned per-direction readout is consistent with the recordings: their peak reach and the
+    way their paths bend (docs/motion.md, "Does the learned readout agree with the recordings")."""
 
     verdict: Literal["agrees", "disagrees", "undetermined"] = Field(
         description="Contract. Only `agrees` lets the learned readout be read beside the kinematic one as a "
-        "preference; otherwise read reach and the weak side from the kinematic readout."
+        "preference; otherwise read reach and the weak side from the kinematic readout. `disagrees`: it runs "
+        "significantly against the peak reach or the path bend; `agrees`: significantly with one and not "
+        "against the other."
     )
     detail: str = Field(description="Contract: why, in a sentence, with the statistics behind it.")
     spearman: float | None = Field(
@@ -90,6 +92,16 @@ class Agreement(BaseModel):
     )
     p_value: float | None = Field(
         default=None, description="Exact one-sided permutation p-value of ρ, in the direction of its sign."
+    )
+    bend_spearman: float | None = Field(
+        default=None,
+        description="Spearman ρ of the learned values with the path-bend levels (`path_bend`, integrated from "
+        "the mean bend of each direction's repetitions) across the same directions. Null where the bend was "
+        "not checked: fewer than four directions, or not all eight directions moved.",
+    )
+    bend_p_value: float | None = Field(
+        default=None,
+        description="Exact one-sided permutation p-value of `bend_spearman`, in the direction of its sign.",
     )
 
 

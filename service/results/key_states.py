@@ -24,26 +24,25 @@ from service.store.blobs import get_array
 from service.store.models.demonstrators import Demonstration
 
 
-def state_occupancy(session: Session, task_ids: list[str], n_states: int) -> np.ndarray:
-    """How often each state occurs in the demonstrations of the given tasks."""
-    counts = np.zeros(n_states)
+def demonstration_states(session: Session, task_ids: list[str]) -> list[np.ndarray]:
+    """The state indices of every demonstration of the given tasks, one array per demonstration."""
     blob_ids = session.execute(
         select(Demonstration.states_blob_id).where(Demonstration.task_id.in_(task_ids))
     ).scalars()
-    for blob_id in blob_ids:
-        counts += np.bincount(get_array(session, blob_id).astype(np.int64), minlength=n_states)
+    return [get_array(session, blob_id).astype(np.int64) for blob_id in blob_ids]
+
+
+def state_occupancy(session: Session, task_ids: list[str], n_states: int) -> np.ndarray:
+    """How often each state occurs in the demonstrations of the given tasks."""
+    counts = np.zeros(n_states)
+    for states in demonstration_states(session, task_ids):
+        counts += np.bincount(states, minlength=n_states)
     return counts
 
 
 def visited_states(session: Session, task_ids: list[str], n_states: int) -> np.ndarray:
     """Boolean mask of the states that occur in any demonstration of the given tasks."""
-    mask = np.zeros(n_states, dtype=bool)
-    blob_ids = session.execute(
-        select(Demonstration.states_blob_id).where(Demonstration.task_id.in_(task_ids))
-    ).scalars()
-    for blob_id in blob_ids:
-        mask[get_array(session, blob_id)] = True
-    return mask
+    return state_occupancy(session, task_ids, n_states) > 0
 
 
 def reward_key_states(session: Session, ctx: RewardContext, *, top: int) -> KeyStates:

@@ -24,11 +24,12 @@ from metairl_engine.motion.readout import (
     agreement,
     direction_readout,
     path_bend,
+    path_offsets,
 )
 from service.domain.motion import UNITS
 from service.problems import Conflict
 from service.results.engine_modules import metrics
-from service.results.key_states import visited_states
+from service.results.key_states import demonstration_states
 from service.store.blobs import get_array
 from service.store.models.demonstrators import Demonstrator, Task
 from service.store.models.job_status import JobStatus
@@ -115,8 +116,8 @@ def learned_readout(
     of the baseline out-and-back movements identify; higher = the baseline favours that direction's path),
     ``task_baseline_pearson`` on those states, ``path_bend`` (`readout.path_bend`, model-free: the
     preference's level per direction from which way the paths bend; None unless all eight directions are
-    there), and the ``agreement`` of those values with the peak reach of
-    ``moves`` (`readout.agreement`). None without a succeeded job."""
+    there), and the ``agreement`` of those values with the peak reach of ``moves`` and with the bend of
+    each demonstration's path (`readout.agreement`). None without a succeeded job."""
     job = latest_succeeded_job(session, demonstrator)
     if job is None:
         return None
@@ -149,30 +150,43 @@ def learned_readout(
         return out
     n_states = rows[0].n_states
     baseline = get_array(session, rows[0].reward_blob_id).astype(np.float64)
-    visited = {task.name: visited_states(session, [task.id], n_states) for _, task in direction_tasks}
-    states = {d: np.flatnonzero(mask) for d, mask in visited.items()}
-    learned = direction_readout(baseline, states, width=layout["width"], height=layout["height"])
-    bend = path_bend(states, width=layout["width"], height=layout["height"])
+    paths = {task.name: demonstration_states(session, [task.id]) for _, task in direction_tasks}
+    states = {d: np.unique(np.concatenate(p)) if p else np.zeros(0, np.int64) for d, p in paths.items()}
+    grid = {"width": layout["width"], "height": layout["height"]}
+    learned = direction_readout(baseline, states, **grid)
+    bend = path_bend(states, **grid)
     for reward, task in direction_tasks:
         values = get_array(session, reward.reward_blob_id).astype(np.float64)
+        mask = np.zeros(n_states, dtype=bool)
+        mask[states[task.name]] = True
         out["directions"].append(
             {
                 "direction": task.name,
                 "task_id": task.id,
                 "reward_id": reward.id,
-                "n_visited_states": int(visited[task.name].sum()),
+                "n_visited_states": len(states[task.name]),
                 "baseline_ring_centred": learned.get(task.name),
-                "task_baseline_pearson": metrics().pearson(values, baseline, mask=visited[task.name]),
+                "task_baseline_pearson": metrics().pearson(values, baseline, mask=mask),
                 "path_bend": bend.get(task.name),
             }
         )
-    out["agreement"] = agreement_body(agreement(learned, reach))
+    out["agreement"] = agreement_body(agreement(learned, reach, offsets=path_offsets(paths, **grid)))
     return out
 
 
 def agreement_body(found: Agreement) -> dict[str, Any]:
-    """The API's ``agreement`` object: verdict, detail, ρ and the permutation p-value in the sign's direction."""
-    p_value = None
-    if found.spearman is not None:
-        p_value = found.p_positive if found.spearman >= 0 else found.p_negative
-    return {"verdict": found.verdict, "detail": found.detail, "spearman": found.spearman, "p_value": p_value}
+    """The API's ``agreement`` object: verdict, detail, and ρ with the permutation p-value in the sign's
+    direction, against the peak reach and against the path bend (null where the bend was not checked)."""
+
+    def p_value(rho: float | None, positive: float | None, negative: float | None) -> float | None:
+        """The one-sided p-value in the direction of ρ's sign."""
+        return None if rho is None else positive if rho >= 0 else negative
+
+    return {
+        "verdict": found.verdict,
+        "detail": found.detail,
+        "spearman": found.spearman,
+        "p_value": p_value(found.spearman, found.p_positive, found.p_negative),
+        "bend_spearman": found.bend_spearman,
+        "bend_p_value": p_value(found.bend_spearman, found.bend_p_positive, found.bend_p_negative),
+    }

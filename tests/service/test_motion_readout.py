@@ -208,30 +208,51 @@ def test_the_verdict_says_whether_the_learned_readout_ranks_directions_as_the_re
     assert agreement["verdict"] == verdict, agreement
     assert isinstance(agreement["detail"], str) and agreement["detail"].endswith(".")
     assert (agreement["spearman"] > 0) == (verdict == "agrees")
+    assert (
+        agreement["bend_spearman"] is None and agreement["bend_p_value"] is None
+    )  # five directions: no bend
     other = make_demonstrator(client, auth)
     make_recording(client, auth, other["id"], FAN)
     body = client.post("/v1/motion-comparisons", json={"a": other["id"], "b": dem["id"]}, headers=auth).json()
     assert body["learned"]["b"]["agreement"] == agreement
 
 
-def test_path_bend_ranks_the_side_every_path_bends_toward_highest(
-    app: FastAPI, client: TestClient, auth: dict[str, str]
-) -> None:
+def learned_with_paths_bent_forward(
+    app: FastAPI, client: TestClient, auth: dict[str, str], favoured: str
+) -> dict[str, Any]:
+    """The learned readout of a demonstrator whose paths in all eight directions reach alike and bend toward
+    forward (counter-clockwise on the right half, clockwise on the left), with a job's baseline `toward`
+    ``favoured``."""
     dem = make_demonstrator(client, auth)
-    # every path bends toward forward: counter-clockwise on the right half, clockwise on the left
     bend = {d: 0.06 * unit[0] for d, unit in UNIT.items()}
     make_recording(client, auth, dem["id"], dict.fromkeys(DIRECTION_NAMES, 0.12), bend=bend)
     job = created(client.post("/v1/jobs", json={"demonstrator_id": dem["id"]}, headers=auth), 202)
-    baseline = toward("right")
+    baseline = toward(favoured)
     store_results(
         app, job_id=job["id"], baseline=baseline, task_rewards=[baseline] * len(job["task_ids"]), n_actions=8
     )
-    learned = created(client.get(f"/v1/demonstrators/{dem['id']}/motion-summary", headers=auth), 200)[
-        "learned"
-    ]
+    learned: dict[str, Any] = created(
+        client.get(f"/v1/demonstrators/{dem['id']}/motion-summary", headers=auth), 200
+    )["learned"]
+    return learned
+
+
+def test_path_bend_ranks_the_side_every_path_bends_toward_highest(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    learned = learned_with_paths_bent_forward(app, client, auth, "right")
     bends = {d: row["path_bend"] for d, row in by_direction(learned).items()}
     assert set(bends) == set(DIRECTION_NAMES)
     assert max(bends, key=bends.__getitem__) == "forward" and min(bends, key=bends.__getitem__) == "backward"
+
+
+def test_a_learned_readout_favouring_the_side_the_paths_bend_away_from_disagrees(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    agreement = learned_with_paths_bent_forward(app, client, auth, "backward")["agreement"]
+    assert agreement["verdict"] == "disagrees", agreement
+    assert agreement["bend_spearman"] < -0.9 and agreement["bend_p_value"] <= 0.05
+    assert "against the path bend" in agreement["detail"]
 
 
 def test_another_labs_demonstrators_are_not_found(
