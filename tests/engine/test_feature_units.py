@@ -1,0 +1,55 @@
+"""Features are put in units of at most one per move before the networks see them: a fit does not depend on
+the units a lab records its features in when those make a feature change by more than one per move."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from metairl_engine import FitConfig
+from metairl_engine.fit import fit, per_move_units
+from metairl_engine.results import TaskData
+from tests.engine.helpers import as_sparse, small_grid, soft_demos, task
+
+CONFIG = FitConfig(hidden=(8,), max_steps=40, ensemble=2)
+
+
+def _distances(size: int = 5) -> np.ndarray:
+    """Per state of a size×size grid, the Manhattan distance in cells to each of two corners (S, 2)."""
+    y, x = np.divmod(np.arange(size * size), size)
+    return np.stack([x + y, (size - 1 - x) + y], axis=1).astype(np.float32)
+
+
+def _tasks(features: np.ndarray) -> list[TaskData]:
+    """Two goal tasks on a seeded 5×5 grid whose state features are ``features``."""
+    mdp = replace(small_grid(size=5), features=features)
+    out = []
+    for goal in (18, 0):
+        reward = np.zeros(25)
+        reward[goal] = 1.0
+        demos = soft_demos(mdp, reward, starts=np.arange(0, 25, 4), length=5, seed=goal, confidence=5.0)
+        out.append(task(mdp, demos))
+    return out
+
+
+def test_features_in_units_a_thousand_times_smaller_give_the_same_fit() -> None:
+    cells = _distances()
+    in_cells, in_thousandths = fit(_tasks(cells), CONFIG), fit(_tasks(cells * 1000), CONFIG)
+    np.testing.assert_allclose(in_thousandths.rewards, in_cells.rewards, rtol=1e-4, atol=1e-4)
+    np.testing.assert_allclose(in_thousandths.baseline, in_cells.baseline, rtol=1e-4, atol=1e-4)
+
+
+def test_only_columns_changing_by_more_than_one_per_move_are_rescaled() -> None:
+    mdp = small_grid(size=5)
+    cells = _distances()
+    mixed = np.concatenate([cells, cells * 3, cells / 4], axis=1)
+    out = per_move_units(mixed, [mdp])
+    np.testing.assert_allclose(out, np.concatenate([cells, cells, cells / 4], axis=1), rtol=1e-6)
+    assert per_move_units(cells, [mdp]) is cells  # nothing to rescale: the very array, bit for bit
+
+
+def test_moves_of_a_stochastic_mdp_count_every_possible_successor() -> None:
+    sparse = as_sparse(small_grid(size=5))
+    assert sparse.next_state is None
+    np.testing.assert_allclose(per_move_units(_distances() * 7, [sparse]), _distances(), rtol=1e-6)
