@@ -43,14 +43,15 @@ CACHE = HERE / "families_results.json"
 PAGE = HERE / "FAMILIES.md"
 COMMAND = ".venv/bin/python -m benchmarks.families"
 
-ENGINE = "per-move-units"
+ENGINE = "feature-units"
 """Engine of the cached rows: change it whenever the engine changes what a fit returns."""
 
 VARYING = "varying-columns"
-"""The engine before `fit.per_move_units` (features reached the networks in the units given): its rows stay
-in the cache and on the page, for before/after. Rows of today's engine marked ``carried_from`` are its fits of
-features that change by at most one per move (every family but the tenths one, and every maxent fit), which
-the rule returns as the very same array, so the fits are the same bit for bit."""
+"""The engine before `fit.input_units` (features reached the networks in the units and from the origin given):
+its rows stay in the cache and on the page, for before/after. Rows of today's engine marked ``carried_from``
+are its fits of features that start at 0 and change by at most one per move (every family but the tenths and
+shifted ones, and every maxent fit), which the rule returns as the very same array, so the fits are the same
+bit for bit."""
 
 SHRUNK = "shrink-to-baseline"
 """The engine before `fit.varying_columns` (constant feature columns were network inputs): its rows stay in
@@ -92,10 +93,12 @@ FROZEN_SEED = 10_000
 """World seeds of the frozen family start here: seeds never used while choosing a default."""
 
 
-def in_tenths(world: RewardWorld) -> RewardWorld:
-    """``world`` with its features ×10 (distances in tenths of a cell): the same world in other units."""
+def in_units(world: RewardWorld, *, per_cell: float = 1.0, origin: float = 0.0) -> RewardWorld:
+    """``world`` with its features (distances in cells) times ``per_cell`` plus ``origin``: the same world
+    measured in other units from another origin."""
     assert world.mdp.features is not None
-    return replace(world, mdp=replace(world.mdp, features=world.mdp.features * np.float32(10)))
+    features = world.mdp.features * np.float32(per_cell) + np.float32(origin)
+    return replace(world, mdp=replace(world.mdp, features=features))
 
 
 FAMILIES: dict[str, Family] = {
@@ -114,7 +117,11 @@ FAMILIES: dict[str, Family] = {
     ),
     # The multi-objectworld family with its distances in tenths of a cell: what a lab's other units do to a fit.
     "multi-objectworld-tenths": Family(
-        lambda i: in_tenths(make_objectworld(seed=200 + i)[0]), multi=True, demos=(3, 10)
+        lambda i: in_units(make_objectworld(seed=200 + i)[0], per_cell=10), multi=True, demos=(3, 10)
+    ),
+    # ... and with every distance counted from 100 cells further off (an origin other than the features' own).
+    "multi-objectworld-shifted": Family(
+        lambda i: in_units(make_objectworld(seed=200 + i)[0], origin=100), multi=True, demos=(3, 10)
     ),
     # Frozen: discrete features, calmer wind, its own seeds; only reported, never used to choose anything.
     "multi-objectworld-discrete (frozen)": Family(
@@ -339,21 +346,23 @@ def diagnostics(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-UNITS_FINDINGS = """### Feature units (engine `per-move-units` against `varying-columns`)
+UNITS_FINDINGS = """### Feature units (engine `feature-units` against `varying-columns`)
 
 - `multi-objectworld-tenths` is the multi-objectworld family with every distance in tenths of a cell (the
-  features ×10; the same worlds, demonstrations and true rewards). Before the rule the fits depended on the
-  units: at 3 demonstrations the default fell from 0.511 / 0.244 to 0.303 / 0.408 and its margin over no
-  sharing from +0.257 to +0.035 ± 0.044; at 10, 0.736 → 0.480. The same distances in tens of cells (×0.1,
-  one-off fits of `make_objectworld(seed=200 + i)` with its features scaled, worlds 0–5, 3 demonstrations)
-  gave 0.516 / 0.254: inputs that change by less than one per move cost nothing measurable, inputs that
-  change by ten per move a third of the accuracy.
-- The rule (`fit.per_move_units`): a feature column whose largest change over one move exceeds one is
-  divided by that change before the networks see it. Every other family's features (distances in cells,
-  indicators, colours), terrain's and the motion grid's normalised coordinates change by at most one per
-  move, so the rule returns their very array and their fits are the same bit for bit (`carried_from`). With
-  it the tenths family scores as the cells one: 0.511 / 0.234 at 3 (margin +0.257 ± 0.048), 0.737 / 0.142
-  at 10 — not bit for bit (the divisor is 10 up to float32 rounding), within the worlds' spread.
+  features ×10), `multi-objectworld-shifted` with every distance counted from 100 cells further off (+100):
+  the same worlds, demonstrations and true rewards in other units. Before the rule the fits depended on both.
+  At 3 demonstrations the default fell from 0.511 / 0.244 in cells to 0.303 / 0.408 in tenths (margin over no
+  sharing +0.035 ± 0.044) and to 0.173 / 0.649 shifted (no sharing 0.061 / 0.804); at 10, to 0.480 and
+  0.236 from 0.736. Distances in tens of cells (×0.1, one-off fits of `make_objectworld(seed=200 + i)` with
+  its features scaled, worlds 0–5, 3 demonstrations) gave 0.516 / 0.254: inputs that change by less than
+  one per move cost nothing measurable.
+- The rule (`fit.input_units`): each varying feature column is moved to start at 0, and one whose largest
+  change over one move exceeds one is divided by that change, before the networks see it. Every other
+  family's features (distances in cells, indicators, colours), terrain's and the motion grid's normalised
+  coordinates start at 0 and change by at most one per move, so the rule returns their very array and their
+  fits are the same bit for bit (`carried_from`). With it the tenths family scores 0.511 / 0.234 at 3
+  (+0.257 ± 0.048), 0.737 / 0.142 at 10, the shifted one 0.503 / 0.244 (+0.248 ± 0.054) and 0.736 / 0.141 —
+  not bit for bit as in cells (float32 rounding of ×10 and +100), within the worlds' spread.
 """
 """What the feature-unit measurements say (written by hand from the tables; keep it in step with them)."""
 

@@ -1,5 +1,5 @@
-"""Features are put in units of at most one per move before the networks see them: a fit does not depend on
-the units a lab records its features in when those make a feature change by more than one per move."""
+"""Features start at 0 and change by at most one per move when the networks see them: a fit does not depend on
+the origin a lab measures its features from, nor on units that make a feature change by more than one per move."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 
 from metairl_engine import FitConfig
-from metairl_engine.fit import fit, per_move_units
+from metairl_engine.fit import fit, input_units
 from metairl_engine.results import TaskData
 from tests.engine.helpers import as_sparse, small_grid, soft_demos, task
 
@@ -40,16 +40,24 @@ def test_features_in_units_a_thousand_times_smaller_give_the_same_fit() -> None:
     np.testing.assert_allclose(in_thousandths.baseline, in_cells.baseline, rtol=1e-4, atol=1e-4)
 
 
+def test_features_measured_from_another_origin_give_the_same_fit() -> None:
+    cells = _distances()
+    from_zero, from_forty = fit(_tasks(cells), CONFIG), fit(_tasks(cells + 40), CONFIG)
+    np.testing.assert_allclose(from_forty.rewards, from_zero.rewards, rtol=1e-4, atol=1e-4)
+    np.testing.assert_allclose(from_forty.baseline, from_zero.baseline, rtol=1e-4, atol=1e-4)
+
+
 def test_only_columns_changing_by_more_than_one_per_move_are_rescaled() -> None:
     mdp = small_grid(size=5)
     cells = _distances()
     mixed = np.concatenate([cells, cells * 3, cells / 4], axis=1)
-    out = per_move_units(mixed, [mdp])
+    out = input_units(mixed, [mdp])
     np.testing.assert_allclose(out, np.concatenate([cells, cells, cells / 4], axis=1), rtol=1e-6)
-    assert per_move_units(cells, [mdp]) is cells  # nothing to rescale: the very array, bit for bit
+    assert input_units(cells, [mdp]) is cells  # nothing to move or rescale: the very array, bit for bit
+    np.testing.assert_allclose(input_units(cells - 3, [mdp]), cells, rtol=1e-6)
 
 
 def test_moves_of_a_stochastic_mdp_count_every_possible_successor() -> None:
     sparse = as_sparse(small_grid(size=5))
     assert sparse.next_state is None
-    np.testing.assert_allclose(per_move_units(_distances() * 7, [sparse]), _distances(), rtol=1e-6)
+    np.testing.assert_allclose(input_units(_distances() * 7, [sparse]), _distances(), rtol=1e-6)
