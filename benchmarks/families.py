@@ -358,8 +358,8 @@ UNITS_FINDINGS = """### Four colours (measured after the choices, used for none)
   sharing is +0.073 ± 0.027 (0.271 / 0.270 against 0.197 / 0.579), short of +0.10, with EVD less than half of
   none's; at 10, +0.247 ± 0.027. One-off fits of the diagnostic variants on worlds 0–2 at 3 (default 0.244):
   `w3` 0.261, `l2` 0.224, `visited` 0.229 (EVD/random 0.816), `narrow` 0.198: no knob closes it. The baseline
-  correlates 0.29 with the world reward (two colours: 0.54; means of worlds 0–5): with more columns that do not matter, three
-  demonstrations per task leave the shared part less determined.
+  correlates 0.29 with the world reward (two colours: 0.54; means of worlds 0–5): with more columns that do
+  not matter, three demonstrations per task leave the shared part less determined.
 
 ### Feature units (engine `feature-units` against `varying-columns`)
 
