@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import torch
 
@@ -57,3 +59,15 @@ def soft_demos(
 def task(mdp: MDP, trajectories: list[Trajectory]) -> TaskData:
     """Shorthand for a named TaskData."""
     return TaskData(mdp=mdp, trajectories=trajectories, name="t")
+
+
+def goal_tasks_with_features(features: np.ndarray) -> list[TaskData]:
+    """Two goal tasks (goals 18 and 0) on a seeded 5×5 grid whose state features are ``features`` (25, F)."""
+    mdp = replace(small_grid(size=5), features=features)
+    out = []
+    for goal in (18, 0):
+        reward = np.zeros(25)
+        reward[goal] = 1.0
+        demos = soft_demos(mdp, reward, starts=np.arange(0, 25, 4), length=5, seed=goal, confidence=5.0)
+        out.append(task(mdp, demos))
+    return out

@@ -3,14 +3,11 @@ the origin a lab measures its features from, nor on units that make a feature ch
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
 from metairl_engine import FitConfig
 from metairl_engine.fit import fit, input_units
-from metairl_engine.results import TaskData
-from tests.engine.helpers import as_sparse, small_grid, soft_demos, task
+from tests.engine.helpers import as_sparse, goal_tasks_with_features, small_grid
 
 CONFIG = FitConfig(hidden=(8,), max_steps=40, ensemble=2)
 
@@ -21,28 +18,22 @@ def _distances(size: int = 5) -> np.ndarray:
     return np.stack([x + y, (size - 1 - x) + y], axis=1).astype(np.float32)
 
 
-def _tasks(features: np.ndarray) -> list[TaskData]:
-    """Two goal tasks on a seeded 5×5 grid whose state features are ``features``."""
-    mdp = replace(small_grid(size=5), features=features)
-    out = []
-    for goal in (18, 0):
-        reward = np.zeros(25)
-        reward[goal] = 1.0
-        demos = soft_demos(mdp, reward, starts=np.arange(0, 25, 4), length=5, seed=goal, confidence=5.0)
-        out.append(task(mdp, demos))
-    return out
-
-
 def test_features_in_units_a_thousand_times_smaller_give_the_same_fit() -> None:
     cells = _distances()
-    in_cells, in_thousandths = fit(_tasks(cells), CONFIG), fit(_tasks(cells * 1000), CONFIG)
+    in_cells, in_thousandths = (
+        fit(goal_tasks_with_features(cells), CONFIG),
+        fit(goal_tasks_with_features(cells * 1000), CONFIG),
+    )
     np.testing.assert_allclose(in_thousandths.rewards, in_cells.rewards, rtol=1e-4, atol=1e-4)
     np.testing.assert_allclose(in_thousandths.baseline, in_cells.baseline, rtol=1e-4, atol=1e-4)
 
 
 def test_features_measured_from_another_origin_give_the_same_fit() -> None:
     cells = _distances()
-    from_zero, from_forty = fit(_tasks(cells), CONFIG), fit(_tasks(cells + 40), CONFIG)
+    from_zero, from_forty = (
+        fit(goal_tasks_with_features(cells), CONFIG),
+        fit(goal_tasks_with_features(cells + 40), CONFIG),
+    )
     np.testing.assert_allclose(from_forty.rewards, from_zero.rewards, rtol=1e-4, atol=1e-4)
     np.testing.assert_allclose(from_forty.baseline, from_zero.baseline, rtol=1e-4, atol=1e-4)
 

@@ -2,28 +2,13 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
 from metairl_engine import FitConfig
 from metairl_engine.fit import _Problem, fit, varying_columns
-from metairl_engine.results import TaskData
-from tests.engine.helpers import small_grid, soft_demos, task
+from tests.engine.helpers import goal_tasks_with_features, small_grid
 
 CONFIG = FitConfig(hidden=(8,), max_steps=40, ensemble=2)
-
-
-def _tasks(features: np.ndarray) -> list[TaskData]:
-    """Two goal tasks on a seeded 5×5 grid whose state features are ``features``."""
-    mdp = replace(small_grid(size=5), features=features)
-    out = []
-    for goal in (18, 0):
-        reward = np.zeros(25)
-        reward[goal] = 1.0
-        demos = soft_demos(mdp, reward, starts=np.arange(0, 25, 4), length=5, seed=goal, confidence=5.0)
-        out.append(task(mdp, demos))
-    return out
 
 
 def test_constant_feature_columns_leave_the_fit_exactly_as_without_them() -> None:
@@ -32,7 +17,10 @@ def test_constant_feature_columns_leave_the_fit_exactly_as_without_them() -> Non
     padded = np.concatenate(
         [np.ones((25, 3)), places[:, :1], np.zeros((25, 1)), places[:, 1:]], axis=1
     ).astype(np.float32)
-    plain, with_constants = fit(_tasks(places), CONFIG), fit(_tasks(padded), CONFIG)
+    plain, with_constants = (
+        fit(goal_tasks_with_features(places), CONFIG),
+        fit(goal_tasks_with_features(padded), CONFIG),
+    )
     np.testing.assert_array_equal(plain.rewards, with_constants.rewards)
     np.testing.assert_array_equal(plain.baseline, with_constants.baseline)
 
@@ -40,7 +28,7 @@ def test_constant_feature_columns_leave_the_fit_exactly_as_without_them() -> Non
 def test_the_networks_see_only_the_varying_columns_plus_the_task_coordinates() -> None:
     rng = np.random.default_rng(0)
     features = np.concatenate([np.ones((25, 4)), rng.integers(0, 2, size=(25, 3))], axis=1)
-    problem = _Problem(_tasks(features.astype(np.float32)), CONFIG)
+    problem = _Problem(goal_tasks_with_features(features.astype(np.float32)), CONFIG)
     assert problem.base_features is not None and problem.base_features.shape[1] == 3
     assert problem.features is not None and problem.features.shape[1] == 3 + 10  # x, y and their waves
 
