@@ -310,8 +310,8 @@ MOVE_UNIT_SLACK = 1e-3
 """A column's largest one-move change must exceed 1 by this much to be rescaled: float32 rounding of an exact
 change of one (a Euclidean distance in cells) is not a unit."""
 
-MOVE_CHUNK = 65_536
-"""Moves whose feature changes `input_units` holds at once (80,000 states × 8 actions would be 640,000)."""
+MOVE_ELEMENTS = 1 << 22
+"""Feature changes (moves × columns) `input_units` holds at once: 16 MB of float32, whatever the width."""
 
 
 def input_units(features: np.ndarray, mdps: Sequence[MDP]) -> np.ndarray:
@@ -327,9 +327,10 @@ def input_units(features: np.ndarray, mdps: Sequence[MDP]) -> np.ndarray:
     family's, terrain's and the motion grid's features start at 0 and change by at most one per move, so
     they fit bit for bit as before.
     """
+    smallest = features.min(axis=0)
     low = np.where(
-        features.max(axis=0) > features.min(axis=0), features.min(axis=0), 0
-    )  # constants: dropped later
+        features.max(axis=0) > smallest, smallest, 0
+    )  # constant columns: `varying_columns` drops them
     change = np.zeros(features.shape[1], dtype=np.float64)
     for mdp in {id(m): m for m in mdps}.values():
         if mdp.next_state is not None:
@@ -338,13 +339,16 @@ def input_units(features: np.ndarray, mdps: Sequence[MDP]) -> np.ndarray:
         else:
             pairs = transition_matrix(mdp).tocoo()
             sources, targets = pairs.row // mdp.n_actions, pairs.col
-        for lo in range(0, len(sources), MOVE_CHUNK):  # (moves, F) a chunk at a time
-            step = features[targets[lo : lo + MOVE_CHUNK]] - features[sources[lo : lo + MOVE_CHUNK]]
+        chunk = max(1, MOVE_ELEMENTS // features.shape[1])
+        for lo in range(0, len(sources), chunk):  # (moves, F) a chunk at a time
+            step = features[targets[lo : lo + chunk]] - features[sources[lo : lo + chunk]]
             change = np.maximum(change, np.abs(step).max(axis=0, initial=0.0))
     scale = np.where(change > 1.0 + MOVE_UNIT_SLACK, change, 1.0)
     if (scale == 1.0).all() and (low == 0).all():
         return features
-    return ((features - low) / scale).astype(np.float32)
+    out = features - low.astype(features.dtype)  # one copy, in the features' own float32
+    out /= scale.astype(features.dtype)
+    return out
 
 
 def _with_coordinates(
