@@ -347,7 +347,7 @@ def input_units(features: np.ndarray, mdps: Sequence[MDP]) -> np.ndarray:
     if (scale == 1.0).all() and (low == 0).all():
         return features
     out = features - low.astype(features.dtype)  # one copy, in the features' own float32
-    out /= scale.astype(features.dtype)
+    out /= scale  # divided in float64 element by element, rounded once into the copy
     return out
 
 
