@@ -328,9 +328,8 @@ def input_units(features: np.ndarray, mdps: Sequence[MDP]) -> np.ndarray:
     they fit bit for bit as before.
     """
     smallest = features.min(axis=0)
-    low = np.where(
-        features.max(axis=0) > smallest, smallest, 0
-    )  # constant columns: `varying_columns` drops them
+    # Constant columns keep their value: `varying_columns` drops them.
+    low = np.where(features.max(axis=0) > smallest, smallest, 0)
     change = np.zeros(features.shape[1], dtype=np.float64)
     for mdp in {id(m): m for m in mdps}.values():
         if mdp.next_state is not None:

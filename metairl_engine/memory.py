@@ -138,9 +138,8 @@ def fit_memory(
     k = ensemble_size(config, n_tasks=t, n_states=s)
     nets = t * k
     if n_features is not None:
-        inputs += (
-            s * n_features * FLOAT
-        )  # the features in input units (`fit.input_units`), where a column moves
+        # The features in input units (`fit.input_units`), a copy where a column moves or is rescaled.
+        inputs += s * n_features * FLOAT
     # The task networks of an MDP with features also see its coordinates and their waves.
     task_columns = TASK_COORDINATE_COLUMNS if config.task_coordinates and n_features is not None else 0
     if n_features is None and config.tabular_inputs == "coordinates":
