@@ -112,8 +112,8 @@ def fit_memory(
 
     ``n_features`` is the MDPs' feature columns (None: tabular), ``n_steps`` the demonstrated steps of all
     tasks, ``n_mdps`` the distinct MDPs loaded, ``successors`` the mean next states per (state, action)
-    (1: deterministic). Counted, for the meta-IRL method: the loaded inputs (transitions, features and
-    their Fourier encoding, trajectories); the VR and baseline networks' parameters with their gradients,
+    (1: deterministic). Counted, for the meta-IRL method: the loaded inputs (transitions, features, their
+    copy in input units and their Fourier encoding, trajectories); the VR and baseline networks' parameters with their gradients,
     Adam's moments and the kept copy; the index tensors of the training, held-out and sharing rows (one
     per network and state with ``sharing_states="all"``), the task networks' inputs including the
     `TASK_COORDINATE_COLUMNS` of coordinates `FitConfig.task_coordinates` adds to an MDP's features (counted
