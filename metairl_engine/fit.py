@@ -307,29 +307,31 @@ def varying_columns(features: np.ndarray) -> np.ndarray:
 
 
 MOVE_UNIT_SLACK = 1e-3
-"""A column's largest one-move change must exceed 1 by this much to be rescaled: float32 rounding of an exact
-change of one (a Euclidean distance in cells) is not a unit."""
+"""How far a column's largest one-move change must exceed 1, or its span fall short of 1, for `input_units` to
+rescale it: float32 rounding of an exact one (a Euclidean distance in cells, a normalised coordinate) is not a
+unit."""
 
 MOVE_ELEMENTS = 1 << 22
 """Feature changes (moves × columns) `input_units` holds at once: 16 MB of float32, whatever the width."""
 
 
 def input_units(features: np.ndarray, mdps: Sequence[MDP]) -> np.ndarray:
-    """``features`` (S, F) with each column's origin moved to its smallest value and every column whose largest
-    change over one move (any action of any of ``mdps``) is c > 1 divided by c: inputs start at 0 and change
-    by at most one per move. The array itself when no column needs either.
+    """``features`` (S, F) with each varying column moved to start at 0 and divided by its largest change over
+    one move (any action of any of ``mdps``) where that exceeds 1, else by its span where that is below 1: every
+    input starts at 0, spans at least 1 and changes by at most 1 per move. The array itself when no column needs
+    any of it.
 
-    The networks' initial weights and learning rate suit inputs near zero that change by about one or less per
-    move — distances in cells, indicators, normalised coordinates — and a fit should not depend on the units
-    or the origin a lab records its features in. On the multi-objectworld family, distances in tenths of a
-    cell (×10) gave Pearson 0.303 against 0.511 in cells, distances from 100 cells away (+100) 0.128 and
-    0.163 against 0.386 and 0.444 on worlds 0 and 1 (docs/method.md, "Feature units"). Every benchmark
-    family's, terrain's and the motion grid's features start at 0 and change by at most one per move, so
-    they fit bit for bit as before.
+    The networks' initial weights and learning rate suit inputs near zero that span about one unit or more and
+    change by about one or less per move — distances in cells, indicators, normalised coordinates — and a fit
+    should not depend on the units or the origin a lab records its features in. On the multi-objectworld
+    family, distances in tenths of a cell (×10) gave Pearson 0.303 against 0.511 in cells, in hundreds of cells
+    (×0.01) 0.276, counted from 100 cells away (+100) 0.173 (docs/method.md, "Feature units"). Every benchmark
+    family's, terrain's and the motion grid's features already start at 0, span at least 1 and change by at
+    most 1 per move, so they fit bit for bit as before.
     """
-    smallest = features.min(axis=0)
-    # Constant columns keep their value: `varying_columns` drops them.
-    low = np.where(features.max(axis=0) > smallest, smallest, 0)
+    smallest, largest = features.min(axis=0), features.max(axis=0)
+    span = largest.astype(np.float64) - smallest
+    low = np.where(span > 0, smallest, 0)  # constant columns keep their value: `varying_columns` drops them
     change = np.zeros(features.shape[1], dtype=np.float64)
     for mdp in {id(m): m for m in mdps}.values():
         if mdp.next_state is not None:
@@ -342,7 +344,8 @@ def input_units(features: np.ndarray, mdps: Sequence[MDP]) -> np.ndarray:
         for lo in range(0, len(sources), chunk):  # (moves, F) a chunk at a time
             step = features[targets[lo : lo + chunk]] - features[sources[lo : lo + chunk]]
             change = np.maximum(change, np.abs(step).max(axis=0, initial=0.0))
-    scale = np.where(change > 1.0 + MOVE_UNIT_SLACK, change, 1.0)
+    narrow = (span > 0) & (span < 1.0 - MOVE_UNIT_SLACK)
+    scale = np.where(change > 1.0 + MOVE_UNIT_SLACK, change, np.where(narrow, span, 1.0))
     if (scale == 1.0).all() and (low == 0).all():
         return features
     out = features - low.astype(features.dtype)  # one copy, in the features' own float32

@@ -1,5 +1,6 @@
-"""Features start at 0 and change by at most one per move when the networks see them: a fit does not depend on
-the origin a lab measures its features from, nor on units that make a feature change by more than one per move."""
+"""Features start at 0, span at least one and change by at most one per move when the networks see them: a fit
+does not depend on the origin a lab measures its features from, nor on units that make a feature change by more
+than one per move, and features in much finer units are stretched to span one."""
 
 from __future__ import annotations
 
@@ -46,6 +47,13 @@ def test_only_columns_changing_by_more_than_one_per_move_are_rescaled() -> None:
     np.testing.assert_allclose(out, np.concatenate([cells, cells, cells / 4], axis=1), rtol=1e-6)
     assert input_units(cells, [mdp]) is cells  # nothing to move or rescale: the very array, bit for bit
     np.testing.assert_allclose(input_units(cells - 3, [mdp]), cells, rtol=1e-6)
+
+
+def test_a_column_spanning_less_than_one_is_stretched_to_span_one() -> None:
+    mdp = small_grid(size=5)
+    cells = _distances()  # each column spans 8 cells
+    out = input_units(np.concatenate([cells / 100, cells], axis=1), [mdp])
+    np.testing.assert_allclose(out, np.concatenate([cells / 8, cells], axis=1), rtol=1e-6)
 
 
 def test_moves_of_a_stochastic_mdp_count_every_possible_successor() -> None:
