@@ -49,9 +49,9 @@ ENGINE = "feature-units"
 VARYING = "varying-columns"
 """The engine before `fit.input_units` (features reached the networks in the units and from the origin given):
 its rows stay in the cache and on the page, for before/after. Rows of today's engine marked ``carried_from``
-are its fits of features that start at 0 and change by at most one per move (every family but the tenths and
-shifted ones, and every maxent fit), which the rule returns as the very same array, so the fits are the same
-bit for bit."""
+are its fits of features that start at 0, span at least one and change by at most one per move (every family
+but the tenths, coarse and shifted ones, and every maxent fit), which the rule returns as the very same
+array, so the fits are the same bit for bit."""
 
 SHRUNK = "shrink-to-baseline"
 """The engine before `fit.varying_columns` (constant feature columns were network inputs): its rows stay in
@@ -123,6 +123,10 @@ FAMILIES: dict[str, Family] = {
     # The multi-objectworld family with its distances in tenths of a cell: what a lab's other units do to a fit.
     "multi-objectworld-tenths": Family(
         lambda i: in_units(make_objectworld(seed=200 + i)[0], per_cell=10), multi=True, demos=(3, 10)
+    ),
+    # ... in hundreds of cells (×0.01: each column spans about 0.15) ...
+    "multi-objectworld-coarse": Family(
+        lambda i: in_units(make_objectworld(seed=200 + i)[0], per_cell=0.01), multi=True, demos=(3, 10)
     ),
     # ... and with every distance counted from 100 cells further off (an origin other than the features' own).
     "multi-objectworld-shifted": Family(
@@ -363,21 +367,21 @@ UNITS_FINDINGS = """### Four colours (measured after the choices, used for none)
 
 ### Feature units (engine `feature-units` against `varying-columns`)
 
-- `multi-objectworld-tenths` is the multi-objectworld family with every distance in tenths of a cell (the
-  features ×10), `multi-objectworld-shifted` with every distance counted from 100 cells further off (+100):
-  the same worlds, demonstrations and true rewards in other units. Before the rule the fits depended on both.
-  At 3 demonstrations the default fell from 0.511 / 0.244 in cells to 0.303 / 0.408 in tenths (margin over no
-  sharing +0.035 ± 0.044) and to 0.173 / 0.649 shifted (no sharing 0.061 / 0.804); at 10, to 0.480 and
-  0.236 from 0.736. Distances in tens of cells (×0.1, one-off fits of `make_objectworld(seed=200 + i)` with
-  its features scaled, worlds 0–5, 3 demonstrations) gave 0.516 / 0.254: inputs that change by less than
-  one per move cost nothing measurable.
-- The rule (`fit.input_units`): each varying feature column is moved to start at 0, and one whose largest
-  change over one move exceeds one is divided by that change, before the networks see it. Every other
-  family's features (distances in cells, indicators, colours), terrain's and the motion grid's normalised
-  coordinates start at 0 and change by at most one per move, so the rule returns their very array and their
-  fits are the same bit for bit (`carried_from`). With it the tenths family scores 0.511 / 0.234 at 3
-  (+0.257 ± 0.048), 0.737 / 0.142 at 10, the shifted one 0.503 / 0.244 (+0.248 ± 0.054) and 0.736 / 0.141 —
-  not bit for bit as in cells (float32 rounding of ×10 and +100), within the worlds' spread.
+- `multi-objectworld-tenths`, `-coarse` and `-shifted` are the multi-objectworld family with every distance
+  in tenths of a cell (features ×10), in hundreds of cells (×0.01) and counted from 100 cells further off
+  (+100): the same worlds, demonstrations and true rewards in other units. Before the rule the fits depended
+  on all three. At 3 demonstrations the default fell from 0.511 / 0.244 in cells to 0.303 / 0.408 in tenths
+  (margin over no sharing +0.035 ± 0.044), 0.276 / 0.354 coarse and 0.173 / 0.649 shifted; at 10, to 0.480,
+  0.477 and 0.236 from 0.736. One-off fits of `make_objectworld(seed=200 + i)` with its features ×0.1 and
+  ×1/16 (worlds 0–5, 3 demonstrations) gave 0.516 / 0.254 and 0.525 / 0.251, as in cells.
+- The rule (`fit.input_units`): each varying feature column is moved to start at 0 and divided by its largest
+  change over one move where that exceeds one, else by its span where that is below one. Every other family's
+  features (distances in cells, indicators, colours), terrain's and the motion grid's normalised coordinates
+  start at 0, span at least one and change by at most one per move, so the rule returns their very array and
+  their fits are the same bit for bit (`carried_from`). With it, at 3 and 10 demonstrations: tenths 0.511 /
+  0.234 (+0.257 ± 0.048) and 0.737 / 0.142; coarse 0.524 / 0.281 (+0.380 ± 0.055) and 0.706 / 0.131; shifted
+  0.503 / 0.244 (+0.248 ± 0.054) and 0.736 / 0.141 — not bit for bit as in cells (float32 rounding), within
+  the worlds' spread.
 """
 """What the feature-unit measurements say (written by hand from the tables; keep it in step with them)."""
 
@@ -483,8 +487,8 @@ def page(rows: list[dict[str, Any]], worlds: int) -> str:
         "random non-goal starts to the goal (at most 3·size steps); single-task: demonstrations of 8 steps "
         "from uniform starts. Demonstrator: softmax(2·Q_soft) of the task's true reward. 32×32 grids, 5 "
         "actions, wind 0.3 (the -discrete rows: 0.1), γ 0.9, objectworld with 2 colours (the -4-colours rows: "
-        "4) and continuous features (the -discrete rows: discrete; the -tenths rows ×10, the -shifted rows "
-        "+100). "
+        "4) and continuous features (the -discrete rows: discrete; the -tenths rows ×10, the -coarse rows ×0.01, "
+        "the -shifted rows +100). "
         "Pearson: learned vs true task reward, goal cell excluded; EVD/rand: true value lost by the learned "
         "reward's optimal policy from uniform starts, as a fraction of a uniform random policy's loss (0 "
         "perfect, 1 no better than random); EPIC: with the MDP's dynamics, 0 perfect.\n\n"
