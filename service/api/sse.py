@@ -133,47 +133,35 @@ async def job_events(
     """The messages of the job's events after ``after_id``, until its terminal status (or ``max_s``, a
     database failure or ``shutdown``: the client reconnects after ``retry``); `slot` is released when it ends."""
     try:
-        async for event in _events(
-            make_session, job_id, after_id=after_id, poll_s=poll_s, max_s=max_s, shutdown=shutdown
-        ):
-            yield event
+        yield ServerSentEvent(retry=RETRY_MS, sep=SEP)
+        deadline = time.monotonic() + max_s
+        while True:
+            try:
+                status, events = await run_in_threadpool(_read, make_session, job_id, after_id)
+            except (OperationalError, PoolTimeout):
+                return  # the database is gone or busy: end here, the client resumes with Last-Event-ID
+            for event in events:
+                yield message(event)
+                after_id = event.id
+                if (
+                    event.kind == "status"
+                    and event.status is not None
+                    and JobStatus(event.status).is_terminal
+                ):
+                    return
+            if len(events) == BATCH:
+                continue  # more are waiting: read on without sleeping
+            if status is None or (status.is_terminal and not events):
+                return  # deleted, or resumed after the terminal event
+            if time.monotonic() >= deadline:
+                return
+            with anyio.move_on_after(poll_s):
+                await shutdown.wait()
+            if shutdown.is_set():
+                return  # the server is shutting down
     finally:
         if slot is not None:
             slot.release()
-
-
-async def _events(
-    make_session: sessionmaker[Session],
-    job_id: str,
-    *,
-    after_id: int,
-    poll_s: float,
-    max_s: float,
-    shutdown: anyio.Event,
-) -> AsyncIterator[ServerSentEvent]:
-    """`job_events` without the slot."""
-    yield ServerSentEvent(retry=RETRY_MS, sep=SEP)
-    deadline = time.monotonic() + max_s
-    while True:
-        try:
-            status, events = await run_in_threadpool(_read, make_session, job_id, after_id)
-        except (OperationalError, PoolTimeout):
-            return  # the database is gone or busy: end here, the client resumes with Last-Event-ID
-        for event in events:
-            yield message(event)
-            after_id = event.id
-            if event.kind == "status" and event.status is not None and JobStatus(event.status).is_terminal:
-                return
-        if len(events) == BATCH:
-            continue  # more are waiting: read on without sleeping
-        if status is None or (status.is_terminal and not events):
-            return  # deleted, or resumed after the terminal event
-        if time.monotonic() >= deadline:
-            return
-        with anyio.move_on_after(poll_s):
-            await shutdown.wait()
-        if shutdown.is_set():
-            return  # the server is shutting down
 
 
 def stream_response(
