@@ -63,15 +63,29 @@ def progress_steps(app: FastAPI, job_id: str) -> list[int]:
         )
 
 
+def monitored_fit(
+    kind: type[Monitor],
+    app: FastAPI,
+    client: TestClient,
+    auth: dict[str, str],
+    settings: Settings,
+    *,
+    seconds: float,
+) -> tuple[int, list[int]]:
+    """A fit of ``seconds`` on a running job watched by a ``kind`` monitor with the default timing: its last
+    step and the steps of the progress events it left, oldest first."""
+    job_id = running_job(app, client, auth, stale=False)
+    monitor = kind(app.state.sessionmaker, job_id, 1, default_timing(settings))
+    monitor.start()
+    step = run_fit(monitor, seconds)
+    monitor.close()
+    return step, progress_steps(app, job_id)
+
+
 def test_the_monitor_appends_a_progress_event_twice_a_second_by_default(
     app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
 ) -> None:
-    job_id = running_job(app, client, auth, stale=False)
-    monitor = Monitor(app.state.sessionmaker, job_id, 1, default_timing(settings))
-    monitor.start()
-    step = run_fit(monitor, 3.0)
-    monitor.close()
-    steps = progress_steps(app, job_id)
+    step, steps = monitored_fit(Monitor, app, client, auth, settings, seconds=3.0)
     assert len(steps) >= 5, steps  # 3 s at two a second, less a loaded machine's slack
     assert steps == sorted(steps) and steps[-1] == step
 
@@ -79,12 +93,8 @@ def test_the_monitor_appends_a_progress_event_twice_a_second_by_default(
 def test_slow_writes_do_not_slow_the_progress_events_below_two_a_second(
     app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
 ) -> None:
-    job_id = running_job(app, client, auth, stale=False)
-    monitor = SlowWrites(app.state.sessionmaker, job_id, 1, default_timing(settings))
-    monitor.start()
-    run_fit(monitor, 4.0)
-    monitor.close()
-    while_running = progress_steps(app, job_id)[:-1]  # the last one is written by close()
+    _, steps = monitored_fit(SlowWrites, app, client, auth, settings, seconds=4.0)
+    while_running = steps[:-1]  # the last one is written by close()
     # On a grid the beats come every 0.5 s however long each takes; waiting 0.5 s after each 0.2 s write
     # would give one every 0.7 s (5 in 4 s).
     assert len(while_running) >= 7, while_running
