@@ -29,6 +29,12 @@ How well the model-free `path_bend` readout and the peak reach rank each patient
 seeds, with no fit (docs/motion.md, "Path bend")::
 
     .venv/bin/python -m benchmarks.motion bend [--size 30] [--seeds 5]
+
+Seventeen readings of the agreement fits of the tuning controllers (`benchmarks.motion_readings`), each scored
+against the true preference, with the weak-left controller whose paths ignore its preference beside
+(docs/motion.md, "Why no reading of the fit ranks a controller's preference")::
+
+    .venv/bin/python -m benchmarks.motion readings [--size 30] [--seed 0]
 """
 
 from __future__ import annotations
@@ -48,6 +54,17 @@ import numpy as np
 import torch
 from scipy.stats import spearmanr
 
+from benchmarks.motion_readings import (
+    COMPARISON,
+    READINGS,
+    Reading,
+    SessionFit,
+    demonstrated_drift,
+    offsets,
+    policy_drift,
+    score,
+    spearman,
+)
 from metairl_engine import FitConfig, Layout, Trajectory
 from metairl_engine.fit import FitResult, Progress, TaskData, fit
 from metairl_engine.grids import DIRECTION_NAMES, grid_mdp, velocity_coords
@@ -357,25 +374,29 @@ def simulate(generator: str, size: int, seed: int) -> Any:
     )
 
 
-def identify_one(patient: Any, session: str, config: FitConfig) -> dict[str, Any]:
-    """Fit one session with ``config``; Pearson of the learned baseline with the patient's inherent preference
-    on the states all demonstrations visit, on all states, and per direction on that direction's states."""
+def fit_directions(patient: Any, session: str, config: FitConfig) -> SessionFit:
+    """Cut one session into per-direction demonstrations (out-and-back, as the service stores them) and fit
+    all its directions together with ``config``."""
     w, h = patient.width, patient.height
     demos = demonstrations(
         patient.sessions[session], discretise_settings=DiscretiseSettings(width=w, height=h)
     )
     mdp = grid_mdp(width=w, height=h, velocity=True, gamma=GAMMA)
-    directions = [d for d in DIRECTION_NAMES if d in demos.by_label]
-    tasks = [TaskData(mdp=mdp, trajectories=demos.by_label[d], name=d) for d in directions]
+    paths = {d: demos.by_label[d] for d in DIRECTION_NAMES if d in demos.by_label}
+    tasks = [TaskData(mdp=mdp, trajectories=ts, name=d) for d, ts in paths.items()]
     started = time.perf_counter()
     result = fit(tasks, config)
     wall = time.perf_counter() - started
-    truth, base = patient.ideal_reward, result.baseline
+    return SessionFit(result=result, paths=paths, mdp=mdp, width=w, height=h, wall_s=wall)
 
-    def states(*names: str) -> np.ndarray:
-        return np.unique(np.concatenate([t.states for d in names for t in demos.by_label[d]]))
 
-    visited = states(*directions)
+def identify_one(patient: Any, session: str, config: FitConfig) -> dict[str, Any]:
+    """Fit one session with ``config``; Pearson of the learned baseline with the patient's inherent preference
+    on the states all demonstrations visit, on all states, and per direction on that direction's states."""
+    w, h = patient.width, patient.height
+    found = fit_directions(patient, session, config)
+    truth, base = patient.ideal_reward, found.result.baseline
+    visited = found.union
     centred = {
         name: ring_centred(values, width=w, height=h, states=visited)
         for name, values in (("base", base), ("truth", truth))
@@ -385,9 +406,9 @@ def identify_one(patient: Any, session: str, config: FitConfig) -> dict[str, Any
         "ring_centred": pearson(centred["base"], truth[visited]),
         "ring_centred_both": pearson(centred["base"], centred["truth"]),
         "all": pearson(base, truth),
-        "per_direction": {d: pearson(base[states(d)], truth[states(d)]) for d in directions},
-        "steps": len(result.history),
-        "wall_s": wall,
+        "per_direction": {d: pearson(base[s], truth[s]) for d, s in found.visited.items()},
+        "steps": len(found.result.history),
+        "wall_s": found.wall_s,
     }
 
 
@@ -585,27 +606,31 @@ AGREEMENT_PATIENTS: dict[str, str | None] = {
 and never used to choose anything."""
 
 
+def agreement_patient(name: str, size: int, seed: int, *, null: bool = False) -> Any:
+    """One of `AGREEMENT_PATIENTS`; ``null``: the same controller whose paths ignore its preference
+    (``preference_gain=0``)."""
+    weak = AGREEMENT_PATIENTS[name]
+    if weak is None:
+        return simulate("planner", size, seed)
+    settings = ControllerSettings(width=size, height=size, seed=seed, weak_side=weak)
+    return simulate_controller_patient(replace(settings, preference_gain=0.0) if null else settings)
+
+
 def agreement_one(patient: Any, session: str) -> dict[str, Any]:
     """Fit one session with the default config; the learned per-direction readout, the same readout of the
     patient's true preference (``ideal_reward``), their Spearman, and the verdict against the peak reach and
     the path bend (and, beside it, the verdict the reach alone gives)."""
     w, h = patient.width, patient.height
     rec = patient.sessions[session]
-    demos = demonstrations(rec, discretise_settings=DiscretiseSettings(width=w, height=h))
-    mdp = grid_mdp(width=w, height=h, velocity=True, gamma=GAMMA)
-    directions = [d for d in DIRECTION_NAMES if d in demos.by_label]
-    tasks = [TaskData(mdp=mdp, trajectories=demos.by_label[d], name=d) for d in directions]
-    started = time.perf_counter()
-    result = fit(tasks, FitConfig())
-    wall = time.perf_counter() - started
-    visited = {d: np.unique(np.concatenate([t.states for t in demos.by_label[d]])) for d in directions}
-    learned = direction_readout(result.baseline, visited, width=w, height=h)
+    found = fit_directions(patient, session, FitConfig())
+    directions, visited = found.directions, found.visited
+    learned = direction_readout(found.result.baseline, visited, width=w, height=h)
     truth = direction_readout(patient.ideal_reward, visited, width=w, height=h)
     bend = path_bend(visited, width=w, height=h)
     reach: dict[str, list[float]] = {}
     for m in movements(rec):
         reach.setdefault(m.direction, []).append(m.peak_reach)
-    offsets = path_offsets({d: [t.states for t in demos.by_label[d]] for d in directions}, width=w, height=h)
+    offsets = path_offsets({d: [t.states for t in found.paths[d]] for d in directions}, width=w, height=h)
     verdict = agreement(learned, reach, offsets=offsets)
     both = [d for d in directions if d in reach]
     return {
@@ -626,7 +651,7 @@ def agreement_one(patient: Any, session: str) -> dict[str, Any]:
         "spearman_reach": verdict.spearman,
         "spearman_bend": verdict.bend_spearman,
         "detail": verdict.detail,
-        "wall_s": wall,
+        "wall_s": found.wall_s,
     }
 
 
@@ -654,14 +679,7 @@ def agreement_main(argv: list[str]) -> None:
     torch.set_num_threads(1)
     rows, claims, right, alone_claims, alone_right = [], 0, 0, 0, 0
     for name in args.patients:
-        weak = AGREEMENT_PATIENTS[name]
-        patient = (
-            simulate("planner", args.size, args.seed)
-            if weak is None
-            else simulate_controller_patient(
-                ControllerSettings(width=args.size, height=args.size, seed=args.seed, weak_side=weak)
-            )
-        )
+        patient = agreement_patient(name, args.size, args.seed)
         for session in patient.sessions:
             found = agreement_one(patient, session)
             print(f"{name} {session}: {json.dumps(found)}", flush=True)
@@ -735,26 +753,22 @@ def bend_main(argv: list[str]) -> None:
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "MOTION.md")
     args = parser.parse_args(argv)
     rows = []
-    cases = [(name, weak, gain) for name, weak in AGREEMENT_PATIENTS.items() for gain in (None, 0.0)]
-    for name, weak, gain in cases:
-        if weak is None and gain is not None:
-            continue
+    cases = [
+        (name, null)
+        for name, weak in AGREEMENT_PATIENTS.items()
+        for null in (False, True)
+        if weak or not null
+    ]
+    for name, null in cases:
         found: dict[str, list[tuple[float, float]]] = {}
         for seed in range(args.seeds):
-            if weak is None:
-                patient = simulate("planner", args.size, seed)
-                truth = patient.ideal_reward
-            else:
-                settings = ControllerSettings(width=args.size, height=args.size, seed=seed, weak_side=weak)
-                truth = simulate_controller_patient(settings).ideal_reward
-                patient = simulate_controller_patient(
-                    settings if gain is None else replace(settings, preference_gain=gain)
-                )
+            patient = agreement_patient(name, args.size, seed, null=null)
+            truth = patient.ideal_reward  # the null patient's preference is the one it ignores
             for session in patient.sessions:
                 one = bend_one(patient, session, truth)
                 if one is not None:
                     found.setdefault(session, []).append(one)
-        label = name if gain is None else f"{name}, paths ignore the preference (null)"
+        label = f"{name}, paths ignore the preference (null)" if null else name
         for session, values in found.items():
             bend, reach = np.array(values).T
             rows.append(
@@ -780,6 +794,115 @@ def bend_main(argv: list[str]) -> None:
     print("\n".join(text))
 
 
+# --- readings of the fit against the true preference ---------------------------------------------------------
+
+READINGS_PATIENTS = ("controller, weak left", "controller, weak right")
+"""The tuning controllers whose agreement fits the readings are scored on (docs/motion.md)."""
+
+
+@dataclass(frozen=True)
+class SessionReadings:
+    """One session: each reading's Spearman with the true preference (``scores``), the paths' mean offsets
+    from their instructed lines (cells, `motion_readings.offsets`), the demonstrated sideways drift per
+    direction (cells per step) and its Spearman with the learned policies' drift, and the fit's wall time."""
+
+    scores: dict[str, float]
+    offsets: dict[str, float]
+    drift: dict[str, float]
+    drift_spearman: float
+    wall_s: float
+
+
+def session_readings(
+    patient: Any, *, config: FitConfig | None = None, readings: dict[str, Reading] | None = None
+) -> dict[str, SessionReadings]:
+    """Per session of ``patient``: fit it as `agreement` does (``config`` default: `FitConfig()`) and score
+    every reading (default: `READINGS` then `COMPARISON`) against ``patient.ideal_reward``'s per-direction
+    readout."""
+    found = {}
+    for session in patient.sessions:
+        fitted = fit_directions(patient, session, config or FitConfig())
+        drift = demonstrated_drift(fitted)
+        found[session] = SessionReadings(
+            scores=score(fitted, patient.ideal_reward, readings or READINGS | COMPARISON),
+            offsets=offsets(fitted),
+            drift=drift,
+            drift_spearman=spearman(policy_drift(fitted), drift),
+            wall_s=fitted.wall_s,
+        )
+    return found
+
+
+def readings_main(argv: list[str]) -> None:
+    """``readings``: fit both sessions of the tuning controllers and of the weak-left null controller; every
+    reading's Spearman with the truth; the table replaces MOTION.md's readings block."""
+    parser = argparse.ArgumentParser(prog="motion.py readings", description="readings of the fit vs truth")
+    parser.add_argument("--size", type=int, default=30)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "MOTION.md")
+    args = parser.parse_args(argv)
+    torch.set_num_threads(1)
+    columns: dict[str, SessionReadings] = {}
+    cases = [(name, False) for name in READINGS_PATIENTS] + [(READINGS_PATIENTS[0], True)]
+    for name, null in cases:
+        patient = agreement_patient(name, args.size, args.seed, null=null)
+        for session, found in session_readings(patient).items():
+            label = f"{name.removeprefix('controller, ')}{' (null)' if null else ''}, {session}"
+            columns[label] = found
+            print(f"{label}: {json.dumps(found.scores)} ({found.wall_s:.0f} s)", flush=True)
+    tuning = [c for label, c in columns.items() if "(null)" not in label]
+    positive = [name for name in READINGS if all(c.scores[name] > 0 for c in tuning)]
+    null = [c for label, c in columns.items() if "(null)" in label]
+    null_positive = sum(all(c.scores[name] > 0 for c in null) for name in READINGS)
+    rows = []
+    for name, reading in (READINGS | COMPARISON).items():
+        cells = [f"{c.scores[name]:+.2f}" for c in columns.values()]
+        rows.append(f"| {name} | {' | '.join(cells)} | {' '.join((reading.__doc__ or '').split())} |")
+    paths = []
+    for label, c in columns.items():
+        size = np.abs(list(c.offsets.values()))
+        drift = np.abs(list(c.drift.values())).max()
+        paths.append(
+            f"| {label} | {size.mean():.2f} [{size.min():.2f}, {size.max():.2f}] | {drift:.3f} | "
+            f"{c.drift_spearman:+.2f} | {c.wall_s:.0f} s |"
+        )
+    text = [
+        "## Readings of the fit against the true preference",
+        "",
+        f"`python -m benchmarks.motion readings --size {args.size} --seed {args.seed}`: both sessions of the "
+        "tuning controllers (weak left, weak right) and of the weak-left controller whose paths ignore its "
+        "preference (null, `preference_gain=0`), each fitted as `agreement` fits them (default config, gamma "
+        "0.9, out-and-back segments). Each reading (`benchmarks/motion_readings.py`) gives one value per "
+        "direction; the table is its Spearman with the true per-direction preference (the agreement block's "
+        'truth) over the 8 directions. "As served": ring-centred (1-cell rings) over the states all '
+        "directions visit and averaged over each direction's visited states, as the served "
+        '`baseline_ring_centred`; "summed around the centre": per-direction slopes turned into levels by '
+        "`bend_levels`, as `path_bend` turns the paths' offsets. The last row is `path_bend` itself.",
+        "",
+        "| reading | " + " | ".join(columns) + " | what it is |",
+        "|" + " --- |" * (len(columns) + 2),
+        *rows,
+        "",
+        "Readings of the fit positive in all four sessions of the tuning controllers: "
+        + (", ".join(positive) if positive else "none")
+        + f"; in both sessions of the null controller, whose paths ignore the preference: {null_positive} of "
+        f"{len(READINGS)}.",
+        "",
+        "The paths: mean absolute offset of each direction's visited cells from its instructed line (cells; mean "
+        "[min, max] over the 8 directions, `motion_readings.offsets`, what `path_bend` reads); the largest "
+        "demonstrated sideways drift of a direction (`demonstrated_drift`, cells per step: a path that returns "
+        "to the centre moves as far to one side as back, so its mean sideways move is near 0 even where it "
+        "bends) and its Spearman with the learned policies' drift (`policy_drift`); the fit's wall time:",
+        "",
+        "| session | offset from the instructed line | demonstrated drift, largest | policies' drift vs "
+        "demonstrated drift | wall |",
+        "| --- | --- | --- | --- | --- |",
+        *paths,
+    ]
+    write_block(args.out, "readings", "\n".join(text))
+    print("\n".join(text))
+
+
 if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == "identify":
         identify_main(sys.argv[2:])
@@ -787,5 +910,7 @@ if __name__ == "__main__":
         agreement_main(sys.argv[2:])
     elif len(sys.argv) > 1 and sys.argv[1] == "bend":
         bend_main(sys.argv[2:])
+    elif len(sys.argv) > 1 and sys.argv[1] == "readings":
+        readings_main(sys.argv[2:])
     else:
         main()
