@@ -40,7 +40,10 @@ class StackedMLP(nn.Module):
         hidden: tuple[int, ...],
         tabular: bool,
         generator: torch.Generator,
+        input_scale: torch.Tensor | None = None,
     ):
+        """``input_scale`` (n_inputs,): factors of each input column's initial first-layer weights (features
+        only; `fit.initial_input_scale`); None leaves the default initialisation."""
         super().__init__()
         self.tabular = tabular
         widths = [n_inputs, *hidden, 1]
@@ -51,6 +54,8 @@ class StackedMLP(nn.Module):
             # stands for a one-hot input, whose effective fan-in is 1.
             bound = 1.0 / math.sqrt(1 if (tabular and layer == 0) else fan_in)
             w = (torch.rand(n_members, fan_in, fan_out, generator=generator) * 2 - 1) * bound
+            if layer == 0 and input_scale is not None:
+                w *= input_scale.to(device=w.device, dtype=w.dtype)[None, :, None]
             b = (torch.rand(n_members, 1, fan_out, generator=generator) * 2 - 1) * bound
             self.weights.append(nn.Parameter(w))
             self.biases.append(nn.Parameter(b))
