@@ -362,8 +362,8 @@ def initial_input_scale(inputs: torch.Tensor) -> torch.Tensor | None:
     times that: the initial reward varies along every column, and the few demonstrations must undo it along the
     columns that do not matter. Started at unit size, each column's weights grow only as far as the
     demonstrations push them. On the four-colour objectworld, six of whose eight distance columns do not enter
-    the reward, the default's Pearson at 3 demonstrations went from 0.271 to 0.349 (worlds 0–5; the two
-    relevant columns alone gave 0.539 on worlds 0–2), on the two-colour family from 0.511 to 0.557
+    the reward, the default's Pearson at 3 demonstrations went from 0.271 to 0.341 (worlds 0–5; the two
+    relevant columns alone gave 0.539 on worlds 0–2), on the two-colour family from 0.511 to 0.552
     (docs/method.md, "Feature units"). Coordinates, indicators and other inputs within ±1 keep the default.
     """
     rms = torch.linalg.vector_norm(inputs, dim=0) / inputs.shape[0] ** 0.5
