@@ -109,8 +109,8 @@ def in_units(world: RewardWorld, *, per_cell: float = 1.0, origin: float = 0.0) 
 
 
 FAMILIES: dict[str, Family] = {
-    "objectworld": Family(lambda i: make_objectworld(seed=i)[0], multi=False, demos=(16, 64)),
-    "binaryworld": Family(lambda i: make_binaryworld(seed=100 + i), multi=False, demos=(16, 64)),
+    "objectworld": Family(lambda i: make_objectworld(seed=i)[0], multi=False, demos=(4, 16, 64, 128)),
+    "binaryworld": Family(lambda i: make_binaryworld(seed=100 + i), multi=False, demos=(4, 16, 64, 128)),
     "multi-objectworld": Family(lambda i: make_objectworld(seed=200 + i)[0], multi=True, demos=(3, 10)),
     "multi-binaryworld": Family(lambda i: make_binaryworld(seed=300 + i), multi=True, demos=(3, 10)),
     # The goal bonus of the terrain (+3): most demonstrations stay near +1 regions instead of reaching the goal.

@@ -81,6 +81,10 @@ def demo_distance(mdp: MDP, trajectories: list[Trajectory]) -> np.ndarray:
     return np.asarray(dijkstra(graph + graph.T, unweighted=True, indices=visited, min_only=True))
 
 
+SINGLE_TASK_DEMOS = 16
+"""Paths of 8 steps in a single-task family's fit (its families-table counts run from 4 to 128)."""
+
+
 def world_of(family: str, index: int) -> tuple[MDP, list[SimTask], np.ndarray]:
     """World ``index`` of ``family``: its MDP, its tasks, and the baseline's truth."""
     if family in GENERATORS:
@@ -89,7 +93,8 @@ def world_of(family: str, index: int) -> tuple[MDP, list[SimTask], np.ndarray]:
         return world.mdp, sims, -world.cost
     spec = FAMILIES[family]
     reward_world = spec.world(index)
-    return reward_world.mdp, tasks_of(spec, reward_world, index, spec.demos[0]), reward_world.reward
+    n_demos = spec.demos[0] if spec.multi else SINGLE_TASK_DEMOS
+    return reward_world.mdp, tasks_of(spec, reward_world, index, n_demos), reward_world.reward
 
 
 def score_world(family: str, index: int) -> dict[str, Any]:
