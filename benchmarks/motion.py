@@ -852,8 +852,8 @@ def readings_main(argv: list[str]) -> None:
             print(f"{label}: {json.dumps(found.scores)} ({found.wall_s:.0f} s)", flush=True)
     tuning = [c for label, c in columns.items() if "(null)" not in label]
     positive = [name for name in READINGS if all(c.scores[name] > 0 for c in tuning)]
-    null = [c for label, c in columns.items() if "(null)" in label]
-    null_positive = sum(all(c.scores[name] > 0 for c in null) for name in READINGS)
+    null_columns = [c for label, c in columns.items() if "(null)" in label]
+    null_positive = sum(all(c.scores[name] > 0 for c in null_columns) for name in READINGS)
     rows = []
     for name, reading in (READINGS | COMPARISON).items():
         cells = [f"{c.scores[name]:+.2f}" for c in columns.values()]
