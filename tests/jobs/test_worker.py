@@ -18,6 +18,8 @@ from sqlalchemy import func, select
 from metairl_engine.config import FitConfig
 from metairl_engine.fit import fit
 from metairl_engine.shrinkage import SHRINKAGE
+from metairl_engine.sim.benchmark import goal_tasks
+from metairl_engine.sim.objectworld import make_objectworld
 from service.jobs.queue import CeleryJobQueue
 from service.store.ids import new_id
 from service.store.models.base import utcnow
@@ -36,7 +38,7 @@ from tests.jobs.helpers import (
     unsent_job,
     wait_for,
 )
-from tests.service.helpers import add_demonstrations, make_mdp, make_task
+from tests.service.helpers import add_demonstrations, make_demonstrator, make_mdp, make_task
 from worker.reaper import RESENT
 from worker.runner import load_tasks
 
@@ -127,6 +129,47 @@ def test_a_succeeded_job_keeps_every_step_and_the_shrinkage_the_engine_computed(
     with stack.client.app.state.sessionmaker() as session:  # type: ignore[attr-defined]
         stored = session.get_one(StepHistory, job["id"])
         assert (stored.n_steps, len(stored.data)) == (len(points), 48 * len(points))
+
+
+def test_an_objectworld_sent_over_http_is_fitted_with_the_default_config_as_a_notebook_fits_it(
+    stack: Stack, worker: subprocess.Popen[bytes]
+) -> None:
+    """A published benchmark world — wind (sparse stochastic moves), distance features of up to several cells
+    — with goal tasks, uploaded as a lab would and fitted with no config: the served rewards are the engine's."""
+    client, auth = stack.client, stack.auth
+    world = make_objectworld(seed=3, size=6)[0]
+    mdp = world.mdp
+    assert mdp.sparse is not None and mdp.features is not None and float(mdp.features.max()) > 1
+    body = {
+        "name": "objectworld",
+        "n_states": mdp.n_states,
+        "n_actions": mdp.n_actions,
+        "gamma": mdp.gamma,
+        "features": mdp.features.tolist(),
+        "transitions": {
+            "kind": "sparse",
+            **{k: getattr(mdp.sparse, k).tolist() for k in ("s", "a", "next", "p")},
+        },
+        "layout": {"width": 6, "height": 6},
+    }
+    mdp_id = make_mdp(client, auth, **body)["id"]
+    demonstrator_id = make_demonstrator(client, auth, name="objectworld demonstrator")["id"]
+    task_ids = []
+    for sim in goal_tasks(world, n_tasks=2, n_demos=3, seed=0, goal_bonus=10.0):
+        task_id = make_task(client, auth, demonstrator_id=demonstrator_id, mdp_id=mdp_id)["id"]
+        paths = [{"states": t.states.tolist(), "actions": t.actions.tolist()} for t in sim.trajectories]
+        add_demonstrations(client, auth, task_id, paths)
+        task_ids.append(task_id)
+
+    job = wait_for(client, auth, submit(client, auth, demonstrator_id, {})["id"], timeout=180)
+    assert job["status"] == "succeeded", job
+    served = client.get(f"/v1/jobs/{job['id']}/rewards", headers=auth).json()["tasks"]
+    torch.set_num_threads(1)  # as the worker fits a problem this small
+    with stack.client.app.state.sessionmaker() as session:  # type: ignore[attr-defined]
+        again = fit(load_tasks(session, task_ids), FitConfig())
+    for i, ref in enumerate(served):
+        npy = client.get(f"/v1/rewards/{ref['reward_id']}", params={"format": "npy"}, headers=auth)
+        np.testing.assert_array_equal(np.load(io.BytesIO(npy.content)), again.rewards[i])
 
 
 def test_running_job_reports_progress_and_cancels_within_seconds(
