@@ -386,7 +386,8 @@ INITIAL_WEIGHTS_FINDINGS = """### Initial weights at unit size (engine `input-sc
   +0.257 → +0.343, shifted +0.248 → +0.330; single-task objectworld at 16 demonstrations 0.473 → 0.574
   (+0.020 → +0.146 over none). At 10 every margin grew or held (multi-objectworld +0.315 → +0.327, four
   colours +0.247 → +0.306). EVD÷random rose a little on multi-objectworld and bonus3 (0.244 → 0.258, 0.196 →
-  0.233), still well under none's. The other families' `feature-units` rows were fitted on another machine; the
+  0.233), still well under none's. No sharing lost a little under the same rule (multi-objectworld 0.254 →
+  0.227, four colours 0.197 → 0.184, bonus3 0.407 → 0.380), so part of each margin's growth is none's loss. The other families' `feature-units` rows were fitted on another machine; the
   same engine refitted here (in a checkout of 2e20a92, `--families multi-objectworld multi-objectworld-4-colours
   --demos 3 --variants default none`) gave 0.507 / 0.242 and 0.271 / 0.270: the change per world, paired,
   is +0.045 ± 0.016 and +0.070 ± 0.019.
