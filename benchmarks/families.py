@@ -41,6 +41,7 @@ from metairl_engine.sim.terrain import SimTask
 HERE = Path(__file__).resolve().parent
 CACHE = HERE / "families_results.json"
 PAGE = HERE / "FAMILIES.md"
+FIGURE = HERE / "families.png"
 COMMAND = ".venv/bin/python -m benchmarks.families"
 
 ENGINE = "input-scale"
@@ -253,6 +254,68 @@ def _selected(row: dict[str, Any], variant: str, engine: str) -> bool:
     return bool(row["variant"] == variant and row["key"].startswith(engine + ":"))
 
 
+def fits_of(
+    rows: list[dict[str, Any]], name: str, demos: int, variant: str, *, engine: str, worlds: int
+) -> list[dict[str, Any]]:
+    """The cached fits of ``variant`` on ``engine`` for one family and demonstration count, worlds < ``worlds``."""
+    return [
+        r
+        for r in rows
+        if r["family"] == name
+        and r["demos"] == demos
+        and _selected(r, variant, engine)
+        and r["world"] < worlds
+    ]
+
+
+def plot(rows: list[dict[str, Any]], worlds: int, path: Path) -> None:
+    """Pearson per multi-task family, default against none and maxent (mean ± s.e. over worlds), and the
+    default of the engine before; one panel per demonstration count."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = [n for n, f in FAMILIES.items() if f.multi]
+    counts = sorted({d for n in names for d in FAMILIES[n].demos})
+    markers = {
+        ("default", ENGINE): ("o", "tab:blue", "default"),
+        ("default", UNITS): ("o", "none", f"default, engine before ({UNITS})"),
+        ("none", ENGINE): ("s", "tab:grey", "none (no sharing)"),
+        ("maxent", ENGINE): ("^", "tab:orange", "maxent"),
+    }
+    fig, axes = plt.subplots(1, len(counts), figsize=(6 * len(counts), 0.45 * len(names) + 1.6), sharey=True)
+    for ax, demos in zip(np.atleast_1d(axes), counts, strict=True):
+        for (variant, engine), (marker, face, label) in markers.items():
+            points = [
+                (y, [r["pearson"] for r in fits_of(rows, n, demos, variant, engine=engine, worlds=worlds)])
+                for y, n in enumerate(names)
+            ]
+            points = [(y, p) for y, p in points if len(p) > 1]
+            if not points:
+                continue
+            ax.errorbar(
+                [np.mean(p) for _, p in points],
+                [y for y, _ in points],
+                xerr=[np.std(p, ddof=1) / len(p) ** 0.5 for _, p in points],
+                fmt=marker,
+                mfc=face,
+                color="tab:blue" if variant == "default" else face,
+                capsize=3,
+                label=label,
+            )
+        ax.set_yticks(range(len(names)), names)
+        ax.invert_yaxis()
+        ax.set_xlabel("Pearson(learned, true task reward), goal excluded")
+        ax.set_title(f"{N_TASKS} goal tasks × {demos} demonstrations")
+        ax.grid(alpha=0.3)
+    handles, labels = np.atleast_1d(axes)[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=9)
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def table(rows: list[dict[str, Any]], variants: list[str], worlds: int, engine: str = ENGINE) -> str:
     """Markdown: family × demos rows, per variant Pearson, EVD / random and EPIC (mean over worlds)."""
     head = (
@@ -270,14 +333,7 @@ def table(rows: list[dict[str, Any]], variants: list[str], worlds: int, engine: 
             counts = set()
             pearsons: dict[str, dict[int, float]] = {}
             for v in variants:
-                sel = [
-                    r
-                    for r in rows
-                    if r["family"] == name
-                    and r["demos"] == demos
-                    and _selected(r, v, engine)
-                    and r["world"] < worlds
-                ]
+                sel = fits_of(rows, name, demos, v, engine=engine, worlds=worlds)
                 counts.add(len(sel))
                 pearsons[v] = {r["world"]: r["pearson"] for r in sel}
                 for k in cells:
@@ -341,6 +397,7 @@ def main() -> None:
     print(table(rows, args.variants, args.worlds))
     if list(args.variants) == list(TABLE_VARIANTS):
         PAGE.write_text(page(rows, args.worlds))
+        plot(rows, args.worlds, FIGURE)
 
 
 DIAGNOSED = ("multi-objectworld", 10)
@@ -548,6 +605,8 @@ def page(rows: list[dict[str, Any]], worlds: int) -> str:
         + f"## Today's engine (engine `{ENGINE}`)\n\n"
         + table(rows, list(TABLE_VARIANTS), worlds)
         + "\n\n"
+        + f"![Pearson per multi-task family: default, none and maxent, and the default of engine `{UNITS}`]"
+        "(families.png)\n\n"
         + INITIAL_WEIGHTS_FINDINGS
         + f"\n## Before: every column's initial weights at nn.Linear's scale (engine `{UNITS}`)\n\n"
         + table(rows, list(TABLE_VARIANTS), worlds, engine=UNITS)
