@@ -580,6 +580,16 @@ FINDINGS = """### What the sharing did, and what was wrong (measured on the engi
 """What the measurements say (written by hand from the tables below; keep it in step with them)."""
 
 
+EARLIER_ENGINES: tuple[tuple[str, str, str], ...] = (
+    (UNITS, "Before: every column's initial weights at nn.Linear's scale", UNITS_FINDINGS),
+    (VARYING, "Before: features in the units given", DISCRETE_FINDINGS),
+    (SHRUNK, "Earlier: constant feature columns among the inputs", SHRINKAGE_FINDINGS),
+    (PREVIOUS, "Earlier still: task rewards as learned, not shrunk towards the baseline", ""),
+    (EARLIER, "Earliest: task networks saw the MDP's features alone", ""),
+)
+"""The page's sections after today's table, newest first: engine key, heading, what its measurements said."""
+
+
 def page(rows: list[dict[str, Any]], worlds: int) -> str:
     """FAMILIES.md: header, protocol, today's table, the earlier engine's, the sharing diagnostics."""
     frozen = [n for n, f in FAMILIES.items() if f.frozen]
@@ -608,23 +618,14 @@ def page(rows: list[dict[str, Any]], worlds: int) -> str:
         + f"![Pearson per multi-task family: default, none and maxent, and the default of engine `{UNITS}`]"
         "(families.png)\n\n"
         + INITIAL_WEIGHTS_FINDINGS
-        + f"\n## Before: every column's initial weights at nn.Linear's scale (engine `{UNITS}`)\n\n"
-        + table(rows, list(TABLE_VARIANTS), worlds, engine=UNITS)
-        + "\n\n"
-        + UNITS_FINDINGS
-        + f"\n## Before: features in the units given (engine `{VARYING}`)\n\n"
-        + table(rows, list(TABLE_VARIANTS), worlds, engine=VARYING)
-        + "\n\n"
-        + DISCRETE_FINDINGS
-        + f"\n## Earlier: constant feature columns among the inputs (engine `{SHRUNK}`)\n\n"
-        + table(rows, list(TABLE_VARIANTS), worlds, engine=SHRUNK)
-        + "\n\n"
-        + SHRINKAGE_FINDINGS
-        + f"\n## Earlier still: task rewards as learned, not shrunk towards the baseline (engine `{PREVIOUS}`)\n\n"
-        + table(rows, list(TABLE_VARIANTS), worlds, engine=PREVIOUS)
-        + f"\n\n## Earliest: task networks saw the MDP's features alone (engine `{EARLIER}`)\n\n"
-        + table(rows, list(TABLE_VARIANTS), worlds, engine=EARLIER)
-        + f"\n\n## The sharing, knob by knob ({family}, {demos} demonstrations per task, engine `{EARLIER}`)\n\n"
+        + "".join(
+            f"\n## {title} (engine `{engine}`)\n\n"
+            + table(rows, list(TABLE_VARIANTS), worlds, engine=engine)
+            + "\n\n"
+            + findings
+            for engine, title, findings in EARLIER_ENGINES
+        )
+        + f"\n## The sharing, knob by knob ({family}, {demos} demonstrations per task, engine `{EARLIER}`)\n\n"
         + diagnostics(rows)
         + "\n\n"
         + FINDINGS
