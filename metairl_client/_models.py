@@ -44,8 +44,12 @@ class JobState:
     updated_at: datetime | None = None
     """When the status last changed."""
     shrinkage: float | None = None
-    """Once succeeded: the λ of each task reward = baseline + λ·(learned task reward − baseline), chosen by
-    held-out likelihood (1: as learned, 0.5: half-way to the baseline); None before, and with ``maxent``."""
+    """Once succeeded: the λ of each task reward = baseline + λ·S_q(learned task reward − baseline), chosen by
+    held-out likelihood (1: deviations at full size, 0.5: half-way to the baseline); None before, and with
+    ``maxent``."""
+    sparsity: float | None = None
+    """Once succeeded: the q of S_q, the share of each task's deviations from the baseline set to zero (0: every
+    deviation kept); None as ``shrinkage`` is."""
 
     @property
     def finished(self) -> bool:
@@ -80,6 +84,7 @@ class JobState:
             attempt=int(body.get("attempts") or 0),
             updated_at=when(body.get("updated_at")),
             shrinkage=body.get("shrinkage"),
+            sparsity=body.get("sparsity"),
         )
 
 

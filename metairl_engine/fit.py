@@ -656,8 +656,8 @@ def _evaluate(
 ) -> FitResult:
     """Rewards, values and policies of every task on every state from the kept networks (eq. 5–9).
 
-    With sharing and a hold-out, each member's task rewards are first shrunk towards its baseline by the λ
-    its held-out folds choose (`shrinkage.shrink_deviations`; values and policies are then those of the
+    With sharing and a hold-out, each member's task rewards are first shrunk towards its baseline by the λ and
+    made sparse by the q its held-out folds choose (`shrinkage.shrink_deviations`; values and policies are then those of the
     shrunk rewards). With an ensemble, each quantity is the mean over the K members (policies: the members'
     mixture), and the rewards' spread across the members comes with them (`member_spread`).
     """
@@ -685,7 +685,7 @@ def _evaluate(
         q_all = every_row(f).reshape(problem.n_nets, n_states, -1)
         values = backup(q_all, kind=config.backup, bgi_k=config.bgi_k)
         members = (f - problem.gamma[:, None] * values).reshape(n_members, n_tasks, n_states)
-        shrinkage = 1.0
+        shrinkage, sparsity = 1.0, 0.0
         if (
             base_members is not None
             and config.shrink_deviations
@@ -703,7 +703,7 @@ def _evaluate(
                 kind=config.backup,
                 bgi_k=config.bgi_k,
             )
-            shrinkage, q_all, values = shrunk.shrinkage, shrunk.q, shrunk.values
+            shrinkage, sparsity, q_all, values = shrunk.shrinkage, shrunk.sparsity, shrunk.q, shrunk.values
             members = shrunk.rewards.reshape(n_members, n_tasks, n_states)
         rewards = members.mean(dim=0)
         if base_members is None:
@@ -722,19 +722,20 @@ def _evaluate(
         baseline_spread=member_spread(base_members),
         reward_spread=member_spread(members),
         shrinkage=shrinkage,
+        sparsity=sparsity,
     )
 
 
-def _heldout_score(problem: _Problem, q: torch.Tensor, config: FitConfig) -> float:
-    """The K-fold held-out NLL of Q (T·K, S, A): each member's held-out steps, calibrated over the scale of Q
-    per member as the stopping rule scores them (`calibrated_nll`), averaged over every held-out step."""
+def _heldout_score(problem: _Problem, q: torch.Tensor, config: FitConfig) -> torch.Tensor:
+    """The K-fold held-out NLL of Q (T·K, S, A) per held-out step: each member's held-out steps, calibrated
+    over the scale of Q per member as the stopping rule scores them (`calibrated_nll`)."""
     held = problem.held
     tasks = torch.from_numpy(held.tasks).to(q.device)
     states = torch.from_numpy(held.states).to(q.device)
     folds = calibrated_nll(
         q[tasks, states], problem.held_actions, confidence=config.confidence, groups=problem.held_of_member
     )
-    return float(torch.cat(folds).mean())
+    return torch.cat(folds)
 
 
 def member_spread(members: torch.Tensor) -> np.ndarray | None:

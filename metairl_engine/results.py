@@ -53,8 +53,10 @@ class FitResult:
     error bar: it ranks where a refit of another seed moves the reward, weakly, and not where the reward is
     wrong, since every fit makes nearly the same error (`benchmarks/uncertainty.py`, docs/method.md
     "Uncertainty per state"). None where one member was fitted (``ensemble`` 1, ``maxent``).
-    ``shrinkage`` is the λ of ``rewards`` = baseline + λ·(task reward − baseline) chosen by held-out
-    likelihood (`FitConfig.shrink_deviations`; 1: the task rewards as learned).
+    ``shrinkage`` and ``sparsity`` are the λ and q of ``rewards`` = baseline + λ·S_q(task reward − baseline)
+    chosen by held-out likelihood, S_q zeroing the smallest share q of each task's deviations from the
+    baseline (`FitConfig.shrink_deviations`, `shrinkage.sparse_deviation`; 1 and 0: the task rewards as
+    learned).
     """
 
     baseline: np.ndarray
@@ -67,6 +69,7 @@ class FitResult:
     baseline_spread: np.ndarray | None = None
     reward_spread: np.ndarray | None = None
     shrinkage: float = 1.0
+    sparsity: float = 0.0
 
     ARRAYS = ("baseline", "rewards", "values", "policies", "baseline_spread", "reward_spread")
     """The fields saved as arrays (the rest, config, history and best step, as JSON beside them)."""
@@ -78,6 +81,7 @@ class FitResult:
             "config": self.config.to_dict(),
             "best_step": self.best_step,
             "shrinkage": self.shrinkage,
+            "sparsity": self.sparsity,
             "history": [asdict(p) for p in self.history],
         }
         with open(path, "wb") as file:
@@ -99,5 +103,6 @@ class FitResult:
             history=[Progress(**p) for p in meta["history"]],
             best_step=meta["best_step"],
             shrinkage=meta.get("shrinkage", 1.0),
+            sparsity=meta.get("sparsity", 0.0),
             config=FitConfig.from_dict(meta["config"]),
         )

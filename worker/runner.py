@@ -209,7 +209,7 @@ def store_results(
 ) -> None:
     """Write every reward, value and policy, with each reward's spread across the ensemble's members and
     the evidence the demonstrations of ``tasks`` give per state (none without tasks), the fit's per-step
-    history and its shrinkage λ (none with maxent, which learns no baseline to shrink toward), and mark the
+    history and its shrinkage λ and sparsity q (none with maxent, which learns no baseline to shrink toward), and mark the
     job succeeded, in one transaction, if still owned."""
     n_actions = result.policies.shape[2]
     base_evidence, task_evidence = tasks_evidence(tasks) if tasks else (None, [None] * len(result.rewards))
@@ -224,6 +224,7 @@ def store_results(
             values={
                 "best_step": result.best_step,
                 "shrinkage": None if result.config.method == "maxent" else result.shrinkage,
+                "sparsity": None if result.config.method == "maxent" else result.sparsity,
                 **progress_values(last),
             },
             message=f"finished after {len(result.history)} steps (kept step {result.best_step})",

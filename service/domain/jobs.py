@@ -100,6 +100,7 @@ class JobOut(Resource):
                     "cancel_requested": False,
                     "best_step": None,
                     "shrinkage": None,
+                    "sparsity": None,
                     "updated_at": "2026-01-05T10:05:15Z",
                     "started_at": "2026-01-05T10:05:01Z",
                     "finished_at": None,
@@ -120,11 +121,18 @@ class JobOut(Resource):
     best_step: int | None = Field(description="The step whose parameters were kept (when succeeded).")
     shrinkage: float | None = Field(
         description="How far the task rewards were pulled toward the baseline: each task reward returned is "
-        "baseline + λ·(learned task reward − baseline), λ ∈ {0, 0.25, 0.5, 0.75, 1} chosen by held-out "
-        "likelihood (`config.shrink_deviations`). 1: the task rewards as learned (also where no choice is "
-        "made: `shrink_deviations` false, `sharing` none, no hold-out, or over 2^17 task-states); 0.5: half-way "
-        "to the baseline; 0: every task gets the baseline. Null until the job succeeds, with `maxent`, and for "
-        "jobs that succeeded before λ was kept.",
+        "baseline + λ·S_q(learned task reward − baseline), λ ∈ {0, 0.25, 0.5, 0.75, 1} and q (`sparsity`) chosen "
+        "by held-out likelihood (`config.shrink_deviations`). 1: the deviations kept at full size (with "
+        "`sparsity` 0, the task rewards as learned; also where no choice is made: `shrink_deviations` false, "
+        "`sharing` none, no hold-out, or over 2^17 task-states); 0.5: half-way to the baseline; 0: every task "
+        "gets the baseline. Null until the job succeeds, with `maxent`, and for jobs that succeeded before λ was "
+        "kept.",
+    )
+    sparsity: float | None = Field(
+        description="The share q ∈ {0, 0.5, 0.9, 0.95} of each task's states whose deviation from the baseline "
+        "S_q set to zero (a soft threshold at that quantile of the deviation's size: what a task adds to the "
+        "shared reward, a goal or an obstacle, is mostly local). 0: every deviation kept; 1 with λ 0. Null as "
+        "`shrinkage` is, and for jobs that succeeded before q was kept.",
     )
     updated_at: datetime
     started_at: datetime | None

@@ -199,9 +199,11 @@ def journey(app: FastAPI, lab: Any) -> None:
     job = lab.submit_job(dem, task_ids=[task])
     assert ids(lab.list_jobs(status="queued").data) == ids(lab.iter_jobs(demonstrator_id=dem)) == [job.id]
     baseline, reward = np.array([0.0, 0.5, 1.0]), np.array([1.0, 0.0, 2.0])
-    store_results(app, job_id=job.id, baseline=baseline, task_rewards=[reward], n_actions=2, shrinkage=0.5)
+    store_results(
+        app, job_id=job.id, baseline=baseline, task_rewards=[reward], n_actions=2, shrinkage=0.5, sparsity=0.9
+    )
     finished = lab.wait(job.id, progress=False)
-    assert (finished.status, finished.shrinkage) == ("succeeded", 0.5)
+    assert (finished.status, finished.shrinkage, finished.sparsity) == ("succeeded", 0.5, 0.9)
     curve = lab.job_history(job.id)
     assert (curve["source"], [p["step"] for p in curve["points"]]) == ("steps", [1, 2, 3])  # every step kept
 

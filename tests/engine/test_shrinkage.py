@@ -1,4 +1,5 @@
-"""Task rewards are shrunk towards the baseline by the share of their deviation that held-out steps bear out."""
+"""Task rewards are shrunk towards the baseline, and their deviation from it made sparse, as far as held-out steps
+allow."""
 
 from __future__ import annotations
 
@@ -15,7 +16,13 @@ from metairl_engine.backups import QRows
 from metairl_engine.fit import fit
 from metairl_engine.planning import transition_matrix, value_iteration
 from metairl_engine.results import FitResult, TaskData
-from metairl_engine.shrinkage import SHRINKAGE, optimal_q
+from metairl_engine.shrinkage import (
+    SHRINKAGE,
+    SPARSITY,
+    one_standard_error_choice,
+    optimal_q,
+    sparse_deviation,
+)
 from tests.engine.helpers import as_sparse, small_grid, soft_demos, task
 
 CONFIG = FitConfig(hidden=(16,), max_steps=120, ensemble=2, holdout_fraction=0.3)
@@ -33,19 +40,47 @@ def _same_reward_tasks(n_tasks: int = 4) -> list[TaskData]:
     ]
 
 
-def test_tasks_that_share_one_reward_are_pulled_to_the_baseline_by_the_chosen_share() -> None:
+def test_tasks_that_share_one_reward_are_pulled_to_the_baseline_by_the_chosen_candidate() -> None:
     tasks = _same_reward_tasks()
-    shrunk = fit(tasks, CONFIG)
-    learned = fit(tasks, replace(CONFIG, shrink_deviations=False))
-    assert learned.shrinkage == 1.0
-    assert shrunk.shrinkage in SHRINKAGE and shrunk.shrinkage < 1.0
-    # The same networks (the choice comes after the fit): baseline + λ·(task reward − baseline).
+    one = replace(CONFIG, ensemble=1)  # one member: the result is that member's candidate itself
+    shrunk = fit(tasks, one)
+    learned = fit(tasks, replace(one, shrink_deviations=False))
+    assert (learned.shrinkage, learned.sparsity) == (1.0, 0.0)
+    assert shrunk.shrinkage in SHRINKAGE and shrunk.sparsity in (*SPARSITY, 1.0)
+    assert (shrunk.shrinkage, shrunk.sparsity) != (1.0, 0.0)
+    # The same networks (the choice comes after the fit): baseline + λ·S_q(task reward − baseline).
     np.testing.assert_allclose(shrunk.baseline, learned.baseline)
-    expected = learned.baseline + shrunk.shrinkage * (learned.rewards - learned.baseline)
-    np.testing.assert_allclose(shrunk.rewards, expected, atol=1e-5)
+    deviation = torch.from_numpy(learned.rewards - learned.baseline)
+    kept = sparse_deviation(deviation, shrunk.sparsity if shrunk.shrinkage else 0.0).numpy()
+    np.testing.assert_allclose(shrunk.rewards, learned.baseline + shrunk.shrinkage * kept, atol=1e-5)
     # Values and policies are those of the shrunk rewards, not of the networks.
     assert not np.allclose(shrunk.values, learned.values, atol=1e-3)
     np.testing.assert_allclose(shrunk.policies.sum(axis=-1), 1.0, atol=1e-5)
+
+
+def test_a_sparse_deviation_zeroes_the_smallest_share_and_keeps_the_order_of_the_rest() -> None:
+    deviation = torch.tensor([[0.1, -0.2, 0.3, -0.4, 2.0, -0.05, 0.0, 0.15, -1.0, 0.5]])
+    kept = sparse_deviation(deviation, 0.5)
+    assert int((kept == 0).sum()) == 5
+    large = deviation.abs() > torch.quantile(deviation.abs(), 0.5)
+    assert torch.equal(kept[large].sign(), deviation[large].sign())
+    assert torch.equal(kept[large].abs().argsort(), deviation[large].abs().argsort())
+    assert torch.equal(sparse_deviation(deviation, 0.0), deviation)
+
+
+def test_the_choice_is_the_sparsest_candidate_within_one_standard_error_then_the_largest_share() -> None:
+    noise = torch.tensor([-1.0, 1.0] * 50)  # per-step NLLs with a standard error of about 0.1
+    nll = {
+        (1.0, 0.0): 1.0 + noise,
+        (0.5, 0.0): 0.95 + noise,  # the best
+        (1.0, 0.9): 1.02 + noise,
+        (0.75, 0.9): 1.04 + noise,
+        (1.0, 0.95): 1.2 + noise,  # sparser, but worse by two standard errors
+        (0.0, 0.0): 1.5 + noise,  # the baseline alone: sparsest of all, far worse
+    }
+    assert one_standard_error_choice(nll) == (1.0, 0.9)
+    nll[0.0, 0.0] = 1.0 + noise
+    assert one_standard_error_choice(nll) == (0.0, 0.0)
 
 
 def test_without_a_baseline_or_a_hold_out_the_task_rewards_are_kept_as_learned() -> None:
@@ -53,7 +88,7 @@ def test_without_a_baseline_or_a_hold_out_the_task_rewards_are_kept_as_learned()
     for config in (replace(CONFIG, sharing="none"), replace(CONFIG, holdout_fraction=0.0)):
         on = fit(tasks, config)
         off = fit(tasks, replace(config, shrink_deviations=False))
-        assert on.shrinkage == 1.0
+        assert (on.shrinkage, on.sparsity) == (1.0, 0.0)
         np.testing.assert_array_equal(on.rewards, off.rewards)
 
 
@@ -87,7 +122,8 @@ def test_the_chosen_share_survives_saving_the_result(tmp_path: Path) -> None:
     result = fit(_same_reward_tasks(n_tasks=2), replace(CONFIG, max_steps=20))
     path = tmp_path / "result.npz"
     result.save(path)
-    assert FitResult.load(path).shrinkage == result.shrinkage
+    loaded = FitResult.load(path)
+    assert (loaded.shrinkage, loaded.sparsity) == (result.shrinkage, result.sparsity)
 
 
 def test_a_fit_with_more_task_states_than_the_budget_keeps_the_task_rewards_as_learned(
@@ -96,6 +132,8 @@ def test_a_fit_with_more_task_states_than_the_budget_keeps_the_task_rewards_as_l
     tasks = _same_reward_tasks(n_tasks=2)
     n_task_states = 2 * CONFIG.ensemble * tasks[0].mdp.n_states
     monkeypatch.setattr(fit_module, "SHRINK_BUDGET", n_task_states - 1)
-    assert fit(tasks, CONFIG).shrinkage == 1.0
+    over = fit(tasks, CONFIG)
+    assert (over.shrinkage, over.sparsity) == (1.0, 0.0)
     monkeypatch.setattr(fit_module, "SHRINK_BUDGET", n_task_states)
-    assert fit(tasks, CONFIG).shrinkage < 1.0
+    within = fit(tasks, CONFIG)
+    assert (within.shrinkage, within.sparsity) != (1.0, 0.0)

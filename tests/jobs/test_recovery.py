@@ -189,16 +189,17 @@ def test_only_the_attempt_that_owns_the_job_can_store_results(
     assert (history["source"], history["attempt"], len(history["points"])) == ("steps", 2, 4)
 
 
-def test_stored_results_keep_the_shrinkage_of_a_meta_irl_fit_and_none_of_maxent(
+def test_stored_results_keep_the_shrinkage_and_sparsity_of_a_meta_irl_fit_and_none_of_maxent(
     app: FastAPI, client: TestClient, auth: dict[str, str]
 ) -> None:
-    """Maxent learns no baseline to shrink toward: its λ (1 by the engine's default) is not a choice made."""
-    for config, expected in ((FitConfig(), 0.25), (FitConfig(method="maxent"), None)):
+    """Maxent learns no baseline to shrink toward: its λ and q (1 and 0 by the engine's default) are not a
+    choice made."""
+    for config, expected in ((FitConfig(), (0.25, 0.9)), (FitConfig(method="maxent"), (None, None))):
         job_id = running_job(app, client, auth, stale=False)
-        result = replace(fake_result(2), config=config, shrinkage=0.25)
+        result = replace(fake_result(2), config=config, shrinkage=0.25, sparsity=0.9)
         store_results(app.state.sessionmaker, job_id, 1, result=result)
         job = client.get(f"/v1/jobs/{job_id}", headers=auth).json()
-        assert (job["status"], job["shrinkage"]) == ("succeeded", expected)
+        assert (job["status"], job["shrinkage"], job["sparsity"]) == ("succeeded", *expected)
 
 
 def test_monitor_passes_a_cancel_request_to_the_fit(

@@ -88,14 +88,14 @@ def test_job_succeeds_and_its_rewards_download_as_json_and_npy(
     assert baseline_value.status_code == 409
 
 
-def test_a_succeeded_job_keeps_every_step_and_the_shrinkage_the_engine_computed(
+def test_a_succeeded_job_keeps_every_step_and_the_shrinkage_and_sparsity_the_engine_computed(
     stack: Stack, worker: subprocess.Popen[bytes]
 ) -> None:
     client, auth = stack.client, stack.auth
     demonstrator_id, task_ids = demonstrated_tasks(client, auth)
     config = QUICK | {"holdout_fraction": 0.5}  # a held-out NLL at every step
     queued = submit(client, auth, demonstrator_id, config)
-    assert queued["shrinkage"] is None
+    assert queued["shrinkage"] is None and queued["sparsity"] is None
     job = wait_for(client, auth, queued["id"])
     assert job["status"] == "succeeded", job
     history = client.get(f"/v1/jobs/{job['id']}/history", headers=auth).json()
@@ -110,6 +110,7 @@ def test_a_succeeded_job_keeps_every_step_and_the_shrinkage_the_engine_computed(
         tasks = load_tasks(session, task_ids)
     again = fit(tasks, FitConfig.from_dict(job["config"]))
     assert job["shrinkage"] in SHRINKAGE and job["shrinkage"] == again.shrinkage
+    assert job["sparsity"] == again.sparsity
     assert len(again.history) == len(points)
     for point, step in zip(points, again.history, strict=True):
         assert point["heldout_nll"] is not None

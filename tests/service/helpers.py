@@ -136,12 +136,13 @@ def store_results(
     uncertainty: list[np.ndarray] | None = None,
     evidence: list[np.ndarray] | None = None,
     shrinkage: float | None = None,
+    sparsity: float | None = None,
 ) -> list[str]:
     """Mark `job_id` succeeded with these rewards, as the worker would (no worker needed); their ids.
 
     Rows: the baseline, then one per task of the job in its order, each task with a value function
     (twice its reward) and a uniform policy; ``uncertainty`` and ``evidence``, where given, one array per row;
-    a three-step loss history; and the job's ``shrinkage`` λ.
+    a three-step loss history; and the job's ``shrinkage`` λ and ``sparsity`` q.
     """
     with app.state.sessionmaker() as session:
         job = session.get_one(Job, job_id)
@@ -168,7 +169,7 @@ def store_results(
         ]
         add_step_history(session, job_id, job.attempts, steps)
         job.status = JobStatus.SUCCEEDED.value
-        job.shrinkage = shrinkage
+        job.shrinkage, job.sparsity = shrinkage, sparsity
         session.commit()
         return ids
 

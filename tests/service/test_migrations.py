@@ -87,8 +87,8 @@ def test_the_head_read_from_the_files_is_alembics_and_a_current_database_is_left
     engine.dispose()
 
 
-def test_removing_the_shrinkage_column_keeps_every_jobs_rows(empty_database_url: str) -> None:
-    """Going down from ``0012_shrinkage`` drops the column in place: a copy of the jobs table (SQLite's batch
+def test_removing_the_shrinkage_and_sparsity_columns_keeps_every_jobs_rows(empty_database_url: str) -> None:
+    """Going down from ``0013_sparsity`` and ``0012_shrinkage`` drops the columns in place: a copy of the jobs table (SQLite's batch
     mode) would delete every job's events, rewards and steps with the old table."""
     engine = make_engine(Settings(database_url=empty_database_url))
     migrate(engine)
@@ -100,6 +100,7 @@ def test_removing_the_shrinkage_column_keeps_every_jobs_rows(empty_database_url:
         config={},
         max_attempts=1,
         shrinkage=0.5,
+        sparsity=0.9,
     )
     rows = [
         Lab(id="lab_migrations", name="migrations"),
@@ -115,7 +116,7 @@ def test_removing_the_shrinkage_column_keeps_every_jobs_rows(empty_database_url:
     with engine.connect() as connection:
         command.downgrade(alembic_config(connection), "0011_step_history")
         connection.commit()
-    assert "shrinkage" not in {c["name"] for c in inspect(engine).get_columns("jobs")}
+    assert not {"shrinkage", "sparsity"} & {c["name"] for c in inspect(engine).get_columns("jobs")}
     with engine.connect() as connection:
         assert connection.execute(select(func.count()).select_from(JobEvent.__table__)).scalar_one() == 1
     migrate(engine)

@@ -75,12 +75,12 @@ PULLED = {
     0.25: "task rewards pulled three quarters of the way to the baseline",
     0.5: "task rewards pulled half-way to the baseline",
     0.75: "task rewards pulled a quarter of the way to the baseline",
-    1.0: "task rewards as learned",
+    1.0: "deviations from the baseline kept at full size",
 }
 """What the run page says of each shrinkage λ the engine chooses from."""
 
 
-def test_run_page_draws_the_loss_curve_settings_best_step_and_shrinkage_of_a_job(
+def test_run_page_draws_the_loss_curve_settings_best_step_shrinkage_and_sparsity_of_a_job(
     demo: Demo, browser: Browser
 ) -> None:
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
@@ -111,6 +111,12 @@ def test_run_page_draws_the_loss_curve_settings_best_step_and_shrinkage_of_a_job
     assert page.locator("#run-facts [data-role='shrinkage']").inner_text() == (
         f"λ {shrinkage:g} ({PULLED[shrinkage]})"
     )
+    sparsity = page.locator("#run-facts [data-role='sparsity']").inner_text()
+    if job["sparsity"]:
+        zeroed = f"the smallest {round(100 * job['sparsity'])} % of each task's deviations from the baseline"
+        assert sparsity == f"q {job['sparsity']:g} ({zeroed} set to zero)"
+    else:
+        assert sparsity == "q 0 (every state's deviation from the baseline kept)"
     settings = page.locator("#run-config tr[data-setting]").evaluate_all(
         "rs => rs.map(r => r.dataset.setting)"
     )

@@ -78,6 +78,9 @@ class Job(ProgressColumns, CreatedAtMixin, Base):
     shrinkage: Mapped[float | None] = mapped_column(Float)
     """The λ that pulled the task rewards toward the baseline (`FitResult.shrinkage`); null until succeeded,
     for maxent, and for jobs that succeeded before it was kept."""
+    sparsity: Mapped[float | None] = mapped_column(Float)
+    """The share q of each task's deviations from the baseline set to zero (`FitResult.sparsity`); null as
+    ``shrinkage`` is, and for jobs that succeeded before it was kept."""
 
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(UTCDateTime())

@@ -1349,6 +1349,7 @@ function renderRun(job, previous) {
     ...fact("steps", p ? `${p.step} of ${p.max_steps}` : "–"),
     ...fact("best step", job.best_step ?? "–"),
     ...fact("shrinkage", shrinkageText(job.shrinkage), { "data-role": "shrinkage", title: SHRINKAGE_TITLE }),
+    ...fact("sparsity", sparsityText(job.sparsity), { "data-role": "sparsity", title: SHRINKAGE_TITLE }),
     ...fact("attempts", `${job.attempts} of ${job.max_attempts}`),
     ...fact("created", when(job.created_at)),
     ...fact("started", when(job.started_at)),
@@ -1367,13 +1368,20 @@ function renderRun(job, previous) {
   if (!succeeded) $("downloads").replaceChildren(el("p", { class: "empty" }, downloadsLater(job)));
 }
 
-const SHRINKAGE_TITLE = "Each task reward is the baseline + λ·(the task's learned reward − the baseline), λ chosen by held-out likelihood (config shrink_deviations)";
+const SHRINKAGE_TITLE = "Each task reward is the baseline + λ·S_q(the task's learned reward − the baseline), S_q setting the smallest share q of the deviations to zero; λ and q chosen by held-out likelihood (config shrink_deviations)";
 
 // The λ that pulled a job's task rewards toward the baseline, in words ("–" before success and with maxent).
 function shrinkageText(shrinkage) {
   if (shrinkage === null || shrinkage === undefined) return "–";
-  const pulled = { 0: "every task reward is the baseline", 0.25: "task rewards pulled three quarters of the way to the baseline", 0.5: "task rewards pulled half-way to the baseline", 0.75: "task rewards pulled a quarter of the way to the baseline", 1: "task rewards as learned" }[shrinkage];
+  const pulled = { 0: "every task reward is the baseline", 0.25: "task rewards pulled three quarters of the way to the baseline", 0.5: "task rewards pulled half-way to the baseline", 0.75: "task rewards pulled a quarter of the way to the baseline", 1: "deviations from the baseline kept at full size" }[shrinkage];
   return `λ ${shrinkage}` + (pulled ? ` (${pulled})` : "");
+}
+
+// The share q of each task's deviations from the baseline set to zero, in words ("–" as for the shrinkage).
+function sparsityText(sparsity) {
+  if (sparsity === null || sparsity === undefined) return "–";
+  if (sparsity === 0) return "q 0 (every state's deviation from the baseline kept)";
+  return `q ${sparsity} (the smallest ${Math.round(100 * sparsity)} % of each task's deviations from the baseline set to zero)`;
 }
 
 function downloadsLater(job) {
