@@ -12,7 +12,10 @@ fit and a second default fit of seed `REFIT_SEED` (other initial weights, other 
 same way): what a spread across members estimates is that variability; and the two fits' absolute errors
 with each other: where they agree, the error is one every fit makes, which no spread across fits can show.
 "|truth − mean|" correlates the error with the true reward's own distance from its mean: not an estimate
-(it needs the truth) but what ranks the error where the learned reward explains little of the truth. The
+(it needs the truth) but what ranks the error where the learned reward explains little of the truth. "Best
+function of the reward" is a bound on any estimate read off the learned reward alone: the error's mean per
+decile of the (per task standardised) learned reward, chosen with the truth on the same states, and the
+decile where that mean peaks. The
 baseline likewise against the world's reward (terrain: −cost). Also the mean absolute error by evidence
 (`metairl_engine.evidence`: visited, next to a visit, elsewhere). The run's rows with their provenance
 replace ``uncertainty_results.json`` beside this script (the results page reads it). Usage::
@@ -73,6 +76,19 @@ def absolute_error(learned: np.ndarray, truth: np.ndarray, mask: np.ndarray) -> 
     return np.abs(a * x + b - y)
 
 
+REWARD_BINS = 10
+"""Quantile bins of the standardised learned reward for the best-function bound (deciles)."""
+
+
+def binned_error(reward_z: np.ndarray, error: np.ndarray) -> tuple[np.ndarray, int]:
+    """Per state, the mean ``error`` of its decile of ``reward_z`` (in-sample, so an upper bound on what a
+    function of the reward can rank), and the decile (0 lowest) where that mean is highest."""
+    edges = np.quantile(reward_z, np.linspace(0, 1, REWARD_BINS + 1)[1:-1])
+    decile = np.searchsorted(edges, reward_z, side="right")
+    means = np.array([error[decile == b].mean() if (decile == b).any() else 0.0 for b in range(REWARD_BINS)])
+    return means[decile], int(means.argmax())
+
+
 def demo_distance(mdp: MDP, trajectories: list[Trajectory]) -> np.ndarray:
     """Per state, the fewest moves (either way round, any action) to a state ``trajectories`` visit."""
     p = transition_matrix(mdp).tocoo()
@@ -108,7 +124,9 @@ def score_world(family: str, index: int) -> dict[str, Any]:
     cpu = time.process_time() - started
     refit = fit(tasks, FitConfig(seed=REFIT_SEED))
     assert result.reward_spread is not None and result.baseline_spread is not None
-    pooled: dict[str, list[np.ndarray]] = {k: [] for k in ("error", "refit", "refit_error", *ESTIMATES)}
+    pooled: dict[str, list[np.ndarray]] = {
+        k: [] for k in ("error", "refit", "refit_error", "reward_z", *ESTIMATES)
+    }
     errors: dict[float, list[np.ndarray]] = {VISITED: [], NEXT_TO_VISITED: [], 0.0: []}
     pearsons = []
     for i, sim in enumerate(sims):
@@ -122,10 +140,13 @@ def score_world(family: str, index: int) -> dict[str, Any]:
         pooled["spread"].append(result.reward_spread[i][mask])
         pooled["hops"].append(demo_distance(mdp, sim.trajectories)[mask])
         pooled["truth_offset"].append(np.abs(truth - truth.mean()))
+        learned = result.rewards[i][mask].astype(np.float64)
+        pooled["reward_z"].append((learned - learned.mean()) / learned.std())
         seen = evidence(mdp, sim.trajectories)[mask]
         for level, found in errors.items():
             found.append(error[seen == level])
     error = np.concatenate(pooled["error"])
+    best, peak = binned_error(np.concatenate(pooled["reward_z"]), error)
     every = np.ones(mdp.n_states, dtype=bool)
     base_error = absolute_error(result.baseline, base_truth, every)
     return {
@@ -134,6 +155,8 @@ def score_world(family: str, index: int) -> dict[str, Any]:
         "pearson": float(np.mean(pearsons)),
         **{f"rho_{k}": float(spearmanr(np.concatenate(pooled[k]), error)[0]) for k in ESTIMATES},
         "rho_baseline": float(spearmanr(result.baseline_spread, base_error)[0]),
+        "rho_best_of_reward": float(spearmanr(best, error)[0]),
+        "error_peak_decile": peak,
         "rho_error_refit_error": float(spearmanr(error, np.concatenate(pooled["refit_error"]))[0]),
         "rho_spread_refit": float(
             spearmanr(np.concatenate(pooled["spread"]), np.concatenate(pooled["refit"]))[0]
@@ -150,10 +173,11 @@ def table(rows: list[dict[str, Any]]) -> str:
     """Markdown: a row per family, means over its worlds."""
     lines = [
         "| family | worlds | Pearson | Spearman(spread, abs error) | Spearman(hops to a demo, abs error) | "
-        "baseline: Spearman(spread, abs error) | Spearman(abs(truth − mean), abs error) | Spearman(spread, abs "
-        "difference from a refit) | Spearman(abs error, the refit's abs error) | abs error visited / next to a "
-        "visit / elsewhere | CPU s per fit |",
-        "| --- " * 11 + "|",
+        "baseline: Spearman(spread, abs error) | Spearman(abs(truth − mean), abs error) | Spearman(best function "
+        "of the reward, abs error) | its peak: decile of the reward | Spearman(spread, abs difference from a "
+        "refit) | Spearman(abs error, the refit's abs error) | abs error visited / next to a visit / elsewhere | "
+        "CPU s per fit |",
+        "| --- " * 13 + "|",
     ]
     for family in dict.fromkeys(r["family"] for r in rows):
         sel = [r for r in rows if r["family"] == family]
@@ -161,9 +185,12 @@ def table(rows: list[dict[str, Any]]) -> str:
         def mean(key: str, sel: list[dict[str, Any]] = sel) -> float:
             return float(np.mean([r[key] for r in sel if r[key] is not None]))
 
+        peaks = "/".join(str(r["error_peak_decile"]) for r in sel)
+
         lines.append(
             f"| {family} | {len(sel)} | {mean('pearson'):.3f} | {mean('rho_spread'):+.2f} | {mean('rho_hops'):+.2f} "
-            f"| {mean('rho_baseline'):+.2f} | {mean('rho_truth_offset'):+.2f} | {mean('rho_spread_refit'):+.2f} | {mean('rho_error_refit_error'):+.2f} | {mean(f'error_{VISITED}'):.3f} / "
+            f"| {mean('rho_baseline'):+.2f} | {mean('rho_truth_offset'):+.2f} | {mean('rho_best_of_reward'):+.2f} | {peaks} "
+            f"| {mean('rho_spread_refit'):+.2f} | {mean('rho_error_refit_error'):+.2f} | {mean(f'error_{VISITED}'):.3f} / "
             f"{mean(f'error_{NEXT_TO_VISITED}'):.3f} / {mean('error_0.0'):.3f} | {mean('cpu_seconds'):.1f} |"
         )
     return "\n".join(lines)

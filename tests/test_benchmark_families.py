@@ -1,11 +1,13 @@
-"""The families benchmark's margin over no sharing: paired world by world, with its standard error; and its
-figure, drawn from whatever fits the cache holds."""
+"""The families benchmark's margin over no sharing: paired world by world, with its standard error; its
+figure, drawn from whatever fits the cache holds; and its families' tasks."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
-from benchmarks.families import key_of, paired_margin, plot
+from benchmarks.families import Family, key_of, paired_margin, plot, tasks_of
+from metairl_engine.sim.objectworld import make_objectworld
 
 
 def test_the_margin_pairs_worlds_and_gives_the_standard_error_of_the_differences() -> None:
@@ -34,3 +36,16 @@ def test_the_figure_is_drawn_from_the_fits_there_are(tmp_path: Path) -> None:
     figure = tmp_path / "families.png"
     plot(rows, 6, figure)  # every other family and the engine before have no fits: left out, not an error
     assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_family_gives_its_tasks_their_count_and_demonstrator() -> None:
+    world = make_objectworld(seed=0, size=6)[0]
+    careful = Family(lambda i: world, multi=True, demos=(2,), n_tasks=3, rationality=50.0)
+    noisy = replace(careful, rationality=0.01)
+
+    sims = tasks_of(careful, world, 0, 2)
+    assert len(sims) == 3 and all(len(s.trajectories) == 2 for s in sims)
+    # A near-greedy demonstrator takes other steps than a near-uniform one from the same seeds.
+    assert [t.actions.tolist() for s in sims for t in s.trajectories] != [
+        t.actions.tolist() for s in tasks_of(noisy, world, 0, 2) for t in s.trajectories
+    ]
