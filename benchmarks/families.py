@@ -307,7 +307,7 @@ def fits_of(
 
 def plot(rows: list[dict[str, Any]], worlds: int, path: Path) -> None:
     """Pearson per multi-task family, default against none and maxent (mean ± s.e. over worlds), and the
-    default of the engine before; one panel per demonstration count."""
+    default of the engine before on the same worlds; one panel per demonstration count."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -323,9 +323,20 @@ def plot(rows: list[dict[str, Any]], worlds: int, path: Path) -> None:
     }
     fig, axes = plt.subplots(1, len(counts), figsize=(6 * len(counts), 0.45 * len(names) + 1.6), sharey=True)
     for ax, demos in zip(np.atleast_1d(axes), counts, strict=True):
+        today = {
+            n: {r["world"] for r in fits_of(rows, n, demos, "default", engine=ENGINE, worlds=worlds)}
+            for n in names
+        }
         for (variant, engine), (marker, face, label) in markers.items():
-            points = [
-                (y, [r["pearson"] for r in fits_of(rows, n, demos, variant, engine=engine, worlds=worlds)])
+            points = [  # the engine before on the worlds today's default has, where it has any: a paired view
+                (
+                    y,
+                    [
+                        r["pearson"]
+                        for r in fits_of(rows, n, demos, variant, engine=engine, worlds=worlds)
+                        if engine == ENGINE or not today[n] or r["world"] in today[n]
+                    ],
+                )
                 for y, n in enumerate(names)
             ]
             points = [(y, p) for y, p in points if len(p) > 1]
