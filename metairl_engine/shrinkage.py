@@ -111,19 +111,16 @@ def shrink_deviations(
     nothing); ``score`` maps Q (N, S, A) to the NLL of each held-out step, lower is better.
     """
     deviation = rewards - baseline
-
-    def candidate(shrinkage: float, sparsity: float) -> torch.Tensor:
-        return baseline + shrinkage * sparse_deviation(deviation, sparsity)
-
     nll: dict[tuple[float, float], torch.Tensor] = {(1.0, 0.0): score(q)}
     for sparsity in SPARSITY:
+        kept = sparse_deviation(deviation, sparsity)
         start = values  # each λ starts from the values of the one before it on this q: they are close
         for shrinkage in sorted(SHRINKAGE, reverse=True):
             if (shrinkage, sparsity) in nll or (shrinkage == 0.0 and sparsity > 0.0):
                 continue  # λ = 0 is the baseline whatever q
             q_shrunk, start = optimal_q(
                 rows,
-                candidate(shrinkage, sparsity),
+                baseline + shrinkage * kept,
                 gamma,
                 values=start,
                 kind=kind,
@@ -134,7 +131,7 @@ def shrink_deviations(
     shrinkage, sparsity = one_standard_error_choice(nll)
     if (shrinkage, sparsity) == (1.0, 0.0):
         return Shrunk(1.0, 0.0, rewards, q, values)
-    shrunk = candidate(shrinkage, sparsity)
+    shrunk = baseline + shrinkage * sparse_deviation(deviation, sparsity)
     q_shrunk, v_shrunk = optimal_q(rows, shrunk, gamma, values=values, kind=kind, bgi_k=bgi_k)
     return Shrunk(shrinkage, 1.0 if shrinkage == 0.0 else sparsity, shrunk, q_shrunk, v_shrunk)
 
