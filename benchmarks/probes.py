@@ -25,6 +25,7 @@ import tempfile
 import time
 import zipfile
 from collections.abc import Callable, Iterator
+from functools import partial
 from pathlib import Path
 
 import httpx
@@ -133,6 +134,18 @@ def trajectories_json(megabytes: float) -> bytes:
     return json.dumps({"trajectories": [one] * n}).encode()
 
 
+def post_csv(data: bytes, http: httpx.Client, task: str) -> httpx.Response:
+    """Upload ``data`` as task ``task``'s demonstrations CSV."""
+    return http.post(f"/v1/tasks/{task}/demonstrations", files={"file": ("d.csv", data)})
+
+
+def post_json(body: bytes, http: httpx.Client, task: str) -> httpx.Response:
+    """Upload ``body`` as task ``task``'s demonstrations JSON."""
+    return http.post(
+        f"/v1/tasks/{task}/demonstrations", content=body, headers={"Content-Type": "application/json"}
+    )
+
+
 def memory(folder: Path) -> None:
     """Peak resident size of a fresh API process per probe (SQLite)."""
     cases: list[tuple[str, Callable[[httpx.Client, str], httpx.Response]]] = []
@@ -149,9 +162,7 @@ def memory(folder: Path) -> None:
         cases.append(
             (
                 f"demonstrations CSV {len(data) / 1e6:.0f} MB",
-                lambda http, t, data=data: http.post(
-                    f"/v1/tasks/{t}/demonstrations", files={"file": ("d.csv", data)}
-                ),
+                partial(post_csv, data),
             )
         )
     for mb in (48, 25, 15):
@@ -159,11 +170,7 @@ def memory(folder: Path) -> None:
         cases.append(
             (
                 f"demonstrations JSON {len(body) / 1e6:.0f} MB",
-                lambda http, t, body=body: http.post(
-                    f"/v1/tasks/{t}/demonstrations",
-                    content=body,
-                    headers={"Content-Type": "application/json"},
-                ),
+                partial(post_json, body),
             )
         )
     grid = {"kind": "grid", "name": "g", "width": 2828, "height": 2828, "gamma": 0.9}

@@ -6,5 +6,5 @@ bash "$root/scripts/bootstrap.sh"
 cd "$root"
 echo "== ruff"; .venv/bin/ruff check .
 echo "== ruff format"; .venv/bin/ruff format --check .
-echo "== mypy"; .venv/bin/mypy metairl_engine service worker metairl_client metairl_cli tests
+echo "== mypy"; .venv/bin/mypy metairl_engine service worker metairl_client metairl_cli tests benchmarks
 echo "== pytest"; .venv/bin/pytest -q "$@"
