@@ -491,12 +491,17 @@ SPARSE_FINDINGS = """### Sparse deviations (engine `sparse-deviations` against `
   0.030 better); the noisier demonstrator with 16 tasks 0.658 against none's 0.266 (+0.392 ± 0.021). EVD÷random
   fell on every family but the 16×16 binaryworld (+0.006). Every margin over no sharing at 3 demonstrations is
   past +0.10 with EVD under none's (lowest: discrete +0.126, frozen discrete +0.152).
-- At 10 demonstrations (worlds 0–2 of seven families, paired): multi-objectworld +0.049 ± 0.013, four colours
-  +0.069 ± 0.012, bonus3 +0.016 ± 0.003, multi-binaryworld +0.007 ± 0.018, discrete +0.058 ± 0.013, and the
-  frozen discrete and three-colour families +0.054 ± 0.005 and +0.044 ± 0.011; EVD÷random lower on all seven.
-  Worlds 3–5 at 10, the other families at 10 and the single-task families are not fitted on today's engine yet
-  (`--demos 10`, `--families objectworld binaryworld`): those cells are empty or count 3 worlds; the engine
-  before's are below.
+- At 10 demonstrations (paired over 6 worlds): multi-objectworld +0.039 ± 0.007, four colours +0.050 ±
+  0.016, bonus3 +0.017 ± 0.003, multi-binaryworld +0.007 ± 0.008, discrete +0.056 ± 0.011, tenths +0.029 ±
+  0.003, coarse +0.027 ± 0.003, shifted +0.031 ± 0.002; frozen: discrete +0.048 ± 0.008, three colours +0.045
+  ± 0.008, 16×16 binaryworld +0.001 ± 0.002, 64×64 objectworld +0.048 ± 0.021 and the noisier demonstrator
+  +0.057 ± 0.003 (the 3 and 2 worlds the engine before fitted). EVD÷random lower on all thirteen. Every
+  margin over no sharing at 10 is past +0.26 (lowest: bonus3 +0.261, 64×64 +0.267) with EVD under none's.
+- Single task (one task: the held-out NLL keeps λ = 0, so what is returned is the baseline network's reward),
+  paired over 6 worlds: objectworld at 4 / 16 / 64 / 128 demonstrations −0.013 / +0.022 / +0.008 / +0.001,
+  binaryworld −0.003 / −0.007 / +0.004 / −0.002 (each within two standard errors of no change but
+  objectworld at 16). With 4 paths of 8 steps the default stays below no sharing on both (objectworld −0.057
+  ± 0.091, binaryworld −0.021 ± 0.013): 32 steps are too few for either; from 16 paths on it is ahead.
 - No sharing and maxent have no baseline to shrink toward: their rows are the engine before's fits, carried.
 - Terrain gained more (+0.047 / +0.057 / +0.053 on the repo, frozen and slip generators, 10 worlds each;
   benchmarks/RESULTS.md, "Accuracy per family").
