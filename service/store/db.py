@@ -134,17 +134,19 @@ def migrate(engine: Engine) -> None:
     """Upgrade the database to the newest revision; safe when several processes (or threads) start at once.
 
     A database already at the newest revision is left alone without importing Alembic (an API process then
-    never loads it: about 30 MB per process).
+    never loads it: about 30 MB per process). The check runs under the migration lock too: on a new SQLite
+    file, connections opened at once race to switch it to WAL, and one of them can be refused as locked.
     """
-    if is_current(engine):
-        return
-    from alembic import command
+    with _THREAD_LOCK, _migration_lock(engine):
+        if is_current(engine):
+            return
+        from alembic import command
 
-    with _THREAD_LOCK, _migration_lock(engine), engine.connect() as connection:
-        if engine.dialect.name == "postgresql":
-            connection.execute(text("SELECT pg_advisory_xact_lock(:key)"), {"key": PG_MIGRATION_LOCK})
-        command.upgrade(alembic_config(connection), "head")
-        connection.commit()
+        with engine.connect() as connection:
+            if engine.dialect.name == "postgresql":
+                connection.execute(text("SELECT pg_advisory_xact_lock(:key)"), {"key": PG_MIGRATION_LOCK})
+            command.upgrade(alembic_config(connection), "head")
+            connection.commit()
 
 
 _REVISION = re.compile(r"""^(down_revision|revision)\s*(?::[^=]+)?=\s*(?:["']([^"']+)["']|None)""", re.M)
