@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from benchmarks.families import Family, key_of, paired_margin, plot, tasks_of
+from benchmarks.families import Family, key_of, paired_margin, plot, table, tasks_of
 from metairl_engine.sim.objectworld import make_objectworld
 
 
@@ -36,6 +36,27 @@ def test_the_figure_is_drawn_from_the_fits_there_are(tmp_path: Path) -> None:
     figure = tmp_path / "families.png"
     plot(rows, 6, figure)  # every other family and the engine before have no fits: left out, not an error
     assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_other_worlds_table_averages_only_worlds_from_its_first_and_lists_only_fitted_rows() -> None:
+    rows = [
+        {
+            "family": "multi-objectworld",
+            "demos": 3,
+            "variant": v,
+            "key": key_of(v),
+            "world": w,
+            "pearson": p + (0.5 if w < 6 else 0.0),  # the table's worlds would lift the mean by 0.5
+            "evd_random": 0.1,
+            "epic": 0.2,
+        }
+        for v, p in (("default", 0.4), ("none", 0.1))
+        for w in (0, 1, 6, 7)
+    ]
+    lines = table(rows, ["default", "none"], 12, first=6).splitlines()
+    assert len(lines) == 3  # header, rule, the one family and demonstration count fitted on worlds 6 … 11
+    assert lines[2].startswith("| multi-objectworld | 3 | 0.400 | 0.100 |")
+    assert lines[2].endswith("| +0.300 ± 0.000 | 2 |")
 
 
 def test_a_family_gives_its_tasks_their_count_and_demonstrator() -> None:
