@@ -532,8 +532,8 @@ On objectworld's rule over a random graph (frozen, added after every choice) the
 Pearson at 3 demonstrations: default 0.121 against none's 0.125 on these worlds (−0.005 ± 0.036; worlds 0 … 5
 −0.009 ± 0.042, maxent 0.122 there), the default under none's on 8 of the 18 worlds, while its EVD / random is
 under none's on all 18 (0.53 against 0.86 here). Its baseline against the world's reward spans −0.16 … +0.44
-and moves with its task rewards' Pearson (correlation 0.97 over the 18 worlds): where the baseline is wrong the sharing carries the error into every
-task. The coordinates the task networks see are not the cause: recovered from the graph, they explain 97–98 %
+and moves with its task rewards' Pearson (correlation 0.97 over the 18 worlds): where the baseline is wrong the
+sharing carries the error into every task. The coordinates the task networks see are not the cause: recovered from the graph, they explain 97–98 %
 of the points' true positions (a linear fit, worlds 0 and 2). At 10 demonstrations the default is ahead
 (+0.133 ± 0.026), with maxent's EVD / random under the default's (0.25 against 0.36)."""
 
@@ -558,7 +558,8 @@ SPARSE_FINDINGS = """### Sparse deviations (engine `sparse-deviations` against `
   0.003, coarse +0.027 ± 0.003, shifted +0.031 ± 0.002; frozen: discrete +0.048 ± 0.008, three colours +0.045
   ± 0.008, 16×16 binaryworld +0.001 ± 0.002, 64×64 objectworld +0.048 ± 0.021 and the noisier demonstrator
   +0.057 ± 0.003 (the 3 and 2 worlds the engine before fitted). EVD÷random lower on all thirteen. Every
-  margin over no sharing at 10 on the grid families is past +0.26 (lowest: bonus3 +0.261, 64×64 +0.267) with EVD under none's.
+  margin over no sharing at 10 on the grid families is past +0.26 (lowest: bonus3 +0.261, 64×64 +0.267) with
+  EVD under none's.
 - Single task (one task: the held-out NLL keeps λ = 0, so what is returned is the baseline network's reward),
   paired over 6 worlds: objectworld at 4 / 16 / 64 / 128 demonstrations −0.013 / +0.022 / +0.008 / +0.001,
   binaryworld −0.003 / −0.007 / +0.004 / −0.002 (each within two standard errors of no change but

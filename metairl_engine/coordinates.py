@@ -55,6 +55,20 @@ def state_coordinates(mdps: Sequence[MDP], *, seed: int) -> np.ndarray | None:
     return graph_coordinates(mdps, seed=seed)
 
 
+def move_graph(mdps: Sequence[MDP]) -> sp.csr_matrix:
+    """The undirected union of the ``mdps``' transition graphs (S, S): s and s' are joined where any action of
+    any of them moves one to the other with positive probability (weights count such moves; hop counts ignore
+    them)."""
+    n_states = mdps[0].n_states
+    adjacency = sp.csr_matrix((n_states, n_states))
+    for mdp in {id(m): m for m in mdps}.values():
+        p = transition_matrix(mdp).tocoo()
+        adjacency = adjacency + sp.csr_matrix(
+            (np.ones(p.nnz), (p.row // mdp.n_actions, p.col)), shape=(n_states, n_states)
+        )
+    return (adjacency + adjacency.T).tocsr()
+
+
 def graph_coordinates(mdps: Sequence[MDP], *, seed: int) -> np.ndarray | None:
     """Landmark MDS of the hop distances of the undirected union of the ``mdps``' transition graphs.
 
@@ -63,13 +77,7 @@ def graph_coordinates(mdps: Sequence[MDP], *, seed: int) -> np.ndarray | None:
     States unreachable from a landmark are put one hop beyond the farthest reachable state.
     """
     n_states = mdps[0].n_states
-    adjacency = sp.csr_matrix((n_states, n_states))
-    for mdp in {id(m): m for m in mdps}.values():
-        p = transition_matrix(mdp).tocoo()
-        adjacency = adjacency + sp.csr_matrix(
-            (np.ones(p.nnz), (p.row // mdp.n_actions, p.col)), shape=(n_states, n_states)
-        )
-    adjacency = adjacency + adjacency.T
+    adjacency = move_graph(mdps)
     rng = np.random.default_rng(seed)
     landmarks = np.sort(rng.choice(n_states, size=min(LANDMARKS, n_states), replace=False))
     hops = shortest_path(adjacency, unweighted=True, indices=landmarks)  # (m, S)

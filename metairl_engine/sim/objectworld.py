@@ -43,19 +43,28 @@ def objectworld_reward(size: int, objects: Objects) -> np.ndarray:
     return np.where(near0 & near1, 1.0, np.where(near0, -1.0, 0.0)).astype(np.float32)
 
 
+def nearest_by_colour(
+    distance: np.ndarray, inner: np.ndarray, outer: np.ndarray, *, n_colours: int, far: float
+) -> np.ndarray:
+    """Per state, the distance (S, 2C) to the nearest object of each inner, then each outer colour, from each
+    state's ``distance`` (S, n) to the n objects; ``far`` where no object has that colour."""
+    columns = [
+        np.where(colours[None, :] == c, distance, far).min(axis=1, initial=far)
+        for colours in (inner, outer)
+        for c in range(n_colours)
+    ]
+    return np.stack(columns, axis=1)
+
+
 def objectworld_features(size: int, objects: Objects, *, n_colours: int, discrete: bool) -> np.ndarray:
     """Euclidean distance to the nearest object of each inner, then each outer colour (S, 2C), or their
     indicators "distance < d", d = 1 … size, per column (S, 2C·size); float32. No object of a colour: the
     grid's diagonal."""
     ys, xs = np.divmod(np.arange(size * size), size)
     dist = np.hypot(xs[:, None] - objects.xy[None, :, 0], ys[:, None] - objects.xy[None, :, 1])
-    far = np.hypot(size, size)
-    columns = [
-        np.where(colours[None, :] == c, dist, far).min(axis=1, initial=far)
-        for colours in (objects.inner, objects.outer)
-        for c in range(n_colours)
-    ]
-    nearest = np.stack(columns, axis=1)
+    nearest = nearest_by_colour(
+        dist, objects.inner, objects.outer, n_colours=n_colours, far=np.hypot(size, size)
+    )
     if not discrete:
         return nearest.astype(np.float32)
     steps = np.arange(1, size + 1)

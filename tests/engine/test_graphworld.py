@@ -1,28 +1,22 @@
-"""Objectworld's rule on a random geometric graph: hops as the radii, on a hand-checked path; a world with
-features and no layout that the engine fits."""
+"""Objectworld's rule on a random geometric graph: hops as the radii, on a hand-checked path; a seeded world
+with distance features and no layout."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from metairl_engine.sim.graphworld import graphworld_reward, hops_between, make_graphworld
+from metairl_engine.mdp import MDP
+from metairl_engine.sim.graphworld import graphworld_reward, make_graphworld
 
-# Eight states on a line: stay, step left, step right (the ends stay put).
-LINE = np.stack([np.arange(8), np.maximum(np.arange(8) - 1, 0), np.minimum(np.arange(8) + 1, 7)], axis=1)
-
-
-def test_hops_count_moves_either_way_round() -> None:
-    hops = hops_between(LINE)
-    np.testing.assert_array_equal(hops[0], np.arange(8))
-    # Moving right only would not reach state 2 from state 5; either way round it is 3 hops.
-    one_way = np.stack([np.arange(8), np.minimum(np.arange(8) + 1, 7)], axis=1)
-    assert hops_between(one_way)[5, 2] == 3
+# Eight states on a line, moving right only (the last stays put): hops count moves either way round.
+LINE = MDP.build(gamma=0.9, next_state=np.stack([np.arange(8), np.minimum(np.arange(8) + 1, 7)], axis=1))
 
 
-def test_reward_follows_objectworlds_rule_with_hops_for_radii() -> None:
+def test_reward_follows_objectworlds_rule_with_hops_either_way_round_for_radii() -> None:
     # Outer colour 0 at state 0, outer colour 1 at state 5: within 3 of the first is states 0 … 3, within 2
-    # of the second states 3 … 7, so state 3 is +1, states 0 … 2 are −1 and the rest 0.
-    reward = graphworld_reward(hops_between(LINE), np.array([0, 5]), np.array([0, 1]))
+    # of the second states 3 … 7 (state 3 only by moving left, which no action does), so state 3 is +1,
+    # states 0 … 2 are −1 and the rest 0.
+    reward = graphworld_reward(LINE, np.array([0, 5]), np.array([0, 1]))
     np.testing.assert_array_equal(reward, [-1, -1, -1, 1, 0, 0, 0, 0])
 
 
