@@ -203,6 +203,7 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "default": {},
     "none": {"sharing": "none"},
     "maxent": {"method": "maxent"},
+    "auto": {"task_features": "auto"},
     # diagnostics of the sharing (what the default's sharing does on these families)
     "visited": {"sharing_states": "visited"},
     "w0.3": {"sharing_weight": 0.3},
@@ -278,6 +279,7 @@ def run_one(world: RewardWorld, sims: list[SimTask], config: FitConfig) -> dict[
         "steps": len(result.history),
         "kept_step": result.best_step,
         "shrinkage": result.shrinkage,
+        "task_features": result.config.task_features,
         "heldout_nll": None if kept is None else float(kept),
         "cpu_seconds": cpu,
     }

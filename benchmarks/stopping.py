@@ -86,7 +86,7 @@ def trace(world: World, sims: list[SimTask], *, steps: int, every: int, config: 
         out.held.append(per_step.numpy().copy())
         out.calibrated.append(calibrated.numpy().copy())
         if step % every == 0 or step == 1:
-            result = _evaluate(problem, vr, base, config, history=[], best_step=step)
+            result, _ = _evaluate(problem, vr, base, config, history=[], best_step=step)
             out.accuracy[step] = float(
                 np.mean(
                     [

@@ -18,6 +18,7 @@ Sharing = Literal["none", "l2", "huber", "std", "entropy"]
 SharingStates = Literal["all", "visited"]
 Backup = Literal["max", "logsumexp", "bgi"]
 TabularInputs = Literal["coordinates", "one_hot"]
+TaskFeatures = Literal["auto", "yes", "no"]
 
 MAX_SEED = 2**63 - 1
 """The largest seed (torch and numpy take 64-bit seeds)."""
@@ -91,6 +92,17 @@ class FitConfig:
     place, which features describing the world (distances to objects, colours around a cell) cannot single
     out: without the place a task network spreads its goal over every state whose features look alike.
     Features that are the coordinates (a grid's x, y) are left as they are."""
+
+    task_features: TaskFeatures = "yes"
+    """With `task_coordinates`: whether the task networks see the MDP's state features beside the place
+    (``yes``) or the place alone (``no``: the coordinates and their sinusoids; the baseline network sees the
+    features either way). ``auto``: fit both and keep the place alone only where its held-out NLL beats the
+    other's by more than one standard error (`fit._fit_choosing_task_inputs`). With the features a task
+    network can repeat the world's structure around its goal, and the baseline, pulled toward every task,
+    takes in the goals' feature signature; with the place alone the world's structure is the baseline's
+    alone, and a task cannot correct what the baseline got wrong along the features. Which is better depends
+    on the world (docs/method.md, "Task inputs"). ``auto`` costs a second fit, and only where the choice
+    exists: with sharing, several tasks, and features that are not the coordinates themselves."""
 
     shrink_deviations: bool = True
     """Each task reward returned is r_b + λ·S_q(r_i − r_b): the baseline plus λ of the task's learned

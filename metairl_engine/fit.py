@@ -20,6 +20,7 @@ import sys
 import time
 import types
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -72,9 +73,67 @@ def fit(
 
         return fit_maxent(tasks, config, progress=progress, should_stop=should_stop)
     with retained_heap():
-        return _fit_meta_irl(
+        return _fit_choosing_task_inputs(
             tasks, config, progress=progress, should_stop=should_stop, device=torch.device(device or "cpu")
         )
+
+
+def _fit_choosing_task_inputs(
+    tasks: Sequence[TaskData],
+    config: FitConfig,
+    *,
+    progress: ProgressCallback | None,
+    should_stop: StopCheck | None,
+    device: torch.device,
+) -> FitResult:
+    """`FitConfig.task_features`: with ``auto``, where there is a choice (sharing, a hold-out, two tasks or
+    more, and a place the features do not already hold: `place_inputs`), fit with both and keep the place
+    alone only if its held-out NLL (on the same held-out steps: the folds depend on the seed alone) is lower
+    than the other's by more than one standard error of the other's per-step NLLs; else the features and
+    the place, the inputs every family was first measured with. The choice made is the result's
+    ``config.task_features``, so refitting with that config gives the same result. Progress runs over both
+    fits (steps of the second follow ``max_steps`` of the first)."""
+    if config.task_features != "auto":
+        return _fit_meta_irl(tasks, config, progress=progress, should_stop=should_stop, device=device)[0]
+    with_features = replace(config, task_features="yes")
+    features = tasks[0].mdp.features
+    if (
+        config.sharing == "none"
+        or config.holdout_fraction == 0
+        or len(tasks) < 2
+        or features is None
+        or place_inputs(input_units(features, [t.mdp for t in tasks]), tasks, config) is None
+    ):
+        return _fit_meta_irl(tasks, with_features, progress=progress, should_stop=should_stop, device=device)[
+            0
+        ]
+    total = 2 * config.max_steps  # what progress reports cover
+
+    def first(p: Progress) -> None:
+        if progress is not None:
+            progress(replace(p, max_steps=total))
+
+    def second(p: Progress) -> None:
+        if progress is not None:
+            progress(replace(p, step=p.step + config.max_steps, max_steps=total))
+
+    featured, featured_nll = _fit_meta_irl(
+        tasks, with_features, progress=first, should_stop=should_stop, device=device
+    )
+    placed, placed_nll = _fit_meta_irl(
+        tasks, replace(config, task_features="no"), progress=second, should_stop=should_stop, device=device
+    )
+    if featured_nll is None or placed_nll is None:  # no held-out step: nothing to choose by
+        return featured
+    return placed if place_wins(featured_nll, placed_nll) else featured
+
+
+def place_wins(with_features: torch.Tensor, place_alone: torch.Tensor) -> bool:
+    """True if the held-out NLLs per step of the place alone have a mean below those with the features by more
+    than one standard error of the latter: the one-standard-error rule of the stopping and the shrinkage,
+    favouring the inputs every benchmark family was first measured with."""
+    standard_error = float(with_features.std()) / with_features.numel() ** 0.5
+    return float(with_features.mean() - place_alone.mean()) > standard_error
 
 
 def validate_tasks(tasks: Sequence[TaskData]) -> None:
@@ -142,7 +201,10 @@ class _Problem:
         if features is None and config.tabular_inputs == "coordinates":
             features = state_coordinates([t.mdp for t in tasks], seed=config.seed)
         base_columns = _baseline_columns(config, features)
-        task_features = _with_coordinates(features, [t.mdp for t in tasks], config)
+        task_features = features
+        place = None if features is None else place_inputs(features, tasks, config)
+        if features is not None and place is not None:
+            task_features = place if config.task_features == "no" else _joined(features, place)
         self.features = None if task_features is None else _encode(task_features, config)
         self.base_features = (
             self.features
@@ -372,19 +434,22 @@ def initial_input_scale(inputs: torch.Tensor) -> torch.Tensor | None:
     return torch.where(rms > 1, 1 / rms, torch.ones_like(rms))
 
 
-def _with_coordinates(
-    features: np.ndarray | None, mdps: Sequence[MDP], config: FitConfig
-) -> np.ndarray | None:
-    """The task networks' inputs: the features, followed by the states' coordinates and their waves at
-    COORDINATE_OCTAVES octaves when `FitConfig.task_coordinates` asks for them and no feature column already
-    is one of them."""
-    if features is None or mdps[0].features is None or not config.task_coordinates:
-        return features  # no features, or coordinates standing in for them
+def place_inputs(features: np.ndarray, tasks: Sequence[TaskData], config: FitConfig) -> np.ndarray | None:
+    """The place the task networks see besides the MDP's ``features`` (in input units): the states'
+    coordinates and their waves at COORDINATE_OCTAVES octaves, when `FitConfig.task_coordinates` asks for
+    them, the MDP has features of its own and no feature column already is one of them; else None."""
+    mdps = [t.mdp for t in tasks]
+    if mdps[0].features is None or not config.task_coordinates:
+        return None  # coordinates standing in for missing features, or not asked for
     coordinates = state_coordinates(mdps, seed=config.seed)
     if coordinates is None or all(any(np.array_equal(c, f) for f in features.T) for c in coordinates.T):
-        return features
-    waves = fourier_features(coordinates, octaves=COORDINATE_OCTAVES)
-    return np.concatenate([features, waves], axis=1).astype(np.float32)
+        return None
+    return fourier_features(coordinates, octaves=COORDINATE_OCTAVES)
+
+
+def _joined(features: np.ndarray, place: np.ndarray) -> np.ndarray:
+    """The features followed by the place's columns, float32."""
+    return np.concatenate([features, place], axis=1).astype(np.float32)
 
 
 def _baseline_columns(config: FitConfig, features: np.ndarray | None) -> list[int] | None:
@@ -554,8 +619,9 @@ def _fit_meta_irl(
     progress: ProgressCallback | None,
     should_stop: StopCheck | None,
     device: torch.device,
-) -> FitResult:
-    """The paper's method: joint Adam on all VR networks and the baseline network (Algorithm 1).
+) -> tuple[FitResult, torch.Tensor | None]:
+    """The paper's method: joint Adam on all VR networks and the baseline network (Algorithm 1); with the
+    result, its K-fold held-out NLL per held-out step (`_heldout_score`; None without a hold-out).
 
     With an ensemble the K members train side by side in the same batched ops; Adam's update is elementwise,
     so each member follows exactly the path it would follow alone. The members are the K folds of a
@@ -653,8 +719,9 @@ def _evaluate(
     *,
     history: list[Progress],
     best_step: int,
-) -> FitResult:
-    """Rewards, values and policies of every task on every state from the kept networks (eq. 5–9).
+) -> tuple[FitResult, torch.Tensor | None]:
+    """Rewards, values and policies of every task on every state from the kept networks (eq. 5–9), and
+    their K-fold held-out NLL per held-out step (None without a hold-out).
 
     With sharing and a hold-out, each member's task rewards are first shrunk towards its baseline by the λ and
     made sparse by the q its held-out folds choose (`shrinkage.shrink_deviations`; values and policies are then those of the
@@ -711,7 +778,8 @@ def _evaluate(
         values = values.reshape(n_members, n_tasks, n_states).mean(dim=0)
         policies = torch.softmax(config.confidence * q_all, dim=-1)
         policies = policies.reshape(n_members, n_tasks, n_states, -1).mean(dim=0)
-    return FitResult(
+        score = _heldout_score(problem, q_all, config) if len(problem.held) else None
+    result = FitResult(
         baseline=base_members.mean(dim=0).cpu().numpy().astype(np.float32),
         rewards=rewards.cpu().numpy().astype(np.float32),
         values=values.cpu().numpy().astype(np.float32),
@@ -724,6 +792,7 @@ def _evaluate(
         shrinkage=shrinkage,
         sparsity=sparsity,
     )
+    return result, score
 
 
 def _heldout_score(problem: _Problem, q: torch.Tensor, config: FitConfig) -> torch.Tensor:

@@ -210,7 +210,8 @@ def store_results(
     """Write every reward, value and policy, with each reward's spread across the ensemble's members and
     the evidence the demonstrations of ``tasks`` give per state (none without tasks), the fit's per-step
     history and its shrinkage λ and sparsity q (none with maxent, which learns no baseline to shrink toward), and mark the
-    job succeeded, in one transaction, if still owned."""
+    job succeeded with the config as fitted (`FitConfig.task_features` ``auto`` replaced by its choice), in one
+    transaction, if still owned."""
     n_actions = result.policies.shape[2]
     base_evidence, task_evidence = tasks_evidence(tasks) if tasks else (None, [None] * len(result.rewards))
     with make_session() as session:
@@ -223,6 +224,7 @@ def store_results(
             where=owned_by(attempt),
             values={
                 "best_step": result.best_step,
+                "config": result.config.to_dict(),  # as fitted: a choice `auto` left to the fit, made
                 "shrinkage": None if result.config.method == "maxent" else result.shrinkage,
                 "sparsity": None if result.config.method == "maxent" else result.sparsity,
                 **progress_values(last),

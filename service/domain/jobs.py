@@ -112,7 +112,10 @@ class JobOut(Resource):
     demonstrator_id: str
     task_ids: list[str]
     status: JobStatus = Field(description="queued, running, succeeded, failed or cancelled (contract).")
-    config: dict[str, Any] = Field(description="Every fit setting used, defaults filled in.")
+    config: dict[str, Any] = Field(
+        description="Every fit setting used, defaults filled in; once succeeded, as fitted (a `task_features` "
+        "`auto` shows the choice the fit made)."
+    )
     progress: JobProgress | None = Field(description="Null until the first step is reported.")
     error: str | None = Field(description="When failed: what went wrong and what to change.")
     attempts: int = Field(description="Runs started; more than 1 after a worker died and the job was re-run.")

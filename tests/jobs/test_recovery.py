@@ -202,6 +202,21 @@ def test_stored_results_keep_the_shrinkage_and_sparsity_of_a_meta_irl_fit_and_no
         assert (job["status"], job["shrinkage"], job["sparsity"]) == ("succeeded", *expected)
 
 
+def test_a_succeeded_job_shows_the_config_as_fitted_with_the_choice_auto_left_to_the_fit(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    demonstrator_id, _ = demonstrated_tasks(client, auth)
+    job = submit(client, auth, demonstrator_id, {**QUICK, "task_features": "auto"})
+    assert job["config"]["task_features"] == "auto"
+    with app.state.sessionmaker() as session:
+        assert claim(session, job["id"]) == 1
+        session.commit()
+    fitted = replace(FitConfig.from_dict(job["config"]), task_features="no")
+    store_results(app.state.sessionmaker, job["id"], 1, result=replace(fake_result(2), config=fitted))
+    shown = client.get(f"/v1/jobs/{job['id']}", headers=auth).json()
+    assert shown["status"] == "succeeded" and shown["config"] == fitted.to_dict()
+
+
 def test_monitor_passes_a_cancel_request_to_the_fit(
     app: FastAPI, client: TestClient, auth: dict[str, str], settings: Settings
 ) -> None:
