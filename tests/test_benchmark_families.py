@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from benchmarks.families import Family, key_of, paired_margin, plot, table, tasks_of
+from benchmarks.families import Family, choice_table, key_of, paired_margin, plot, table, tasks_of
 from metairl_engine.sim.objectworld import make_objectworld
 
 
@@ -17,6 +17,32 @@ def test_the_margin_pairs_worlds_and_gives_the_standard_error_of_the_differences
 
 def test_the_margin_needs_two_worlds_both_configs_fitted() -> None:
     assert paired_margin({0: 0.3}, {0: 0.1, 1: 0.2}) == "—"
+
+
+def test_the_choice_table_pairs_auto_with_the_default_and_counts_the_place_alone() -> None:
+    rows = [
+        {
+            "family": "multi-objectworld",
+            "demos": 3,
+            "variant": v,
+            "key": key_of(v),
+            "world": w,
+            "pearson": pearson[w],
+            "evd_random": 0.5,
+            **({"task_features": chosen[w]} if v == "auto" else {}),
+        }
+        for v, pearson, chosen in (
+            ("auto", [0.5, 0.6, 0.7], ["no", "yes", "yes"]),
+            ("default", [0.3, 0.6, 0.5], [None] * 3),
+            ("none", [0.1, 0.1, 0.1], [None] * 3),
+        )
+        for w in range(3 if v == "auto" else 2)  # world 2 has no default or none fit: left out
+    ]
+    [line] = choice_table(rows, first=0, worlds=6).splitlines()[2:]
+    assert line == (
+        "| multi-objectworld | 3 | 0.550 | 0.450 | +0.100 ± 0.100 | +0.450 ± 0.050 | 0.500 | 0.500 | 0.500 | "
+        "1 of 2 |"
+    )
 
 
 def test_the_figure_is_drawn_from_the_fits_there_are(tmp_path: Path) -> None:
