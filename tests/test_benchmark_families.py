@@ -5,9 +5,16 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 from benchmarks.families import Family, choice_table, key_of, paired_margin, plot, table, tasks_of
 from metairl_engine.sim.objectworld import make_objectworld
+
+
+def fit_row(variant: str, world: int, *, demos: int = 3, **scores: Any) -> dict[str, Any]:
+    """A cached fit of ``variant`` on multi-objectworld's ``world`` with these scores, keyed as today's engine."""
+    head = {"family": "multi-objectworld", "demos": demos, "variant": variant, "key": key_of(variant)}
+    return {**head, "world": world, **scores}
 
 
 def test_the_margin_pairs_worlds_and_gives_the_standard_error_of_the_differences() -> None:
@@ -21,16 +28,7 @@ def test_the_margin_needs_two_worlds_both_configs_fitted() -> None:
 
 def test_the_choice_table_pairs_auto_with_the_default_and_counts_the_place_alone() -> None:
     rows = [
-        {
-            "family": "multi-objectworld",
-            "demos": 3,
-            "variant": v,
-            "key": key_of(v),
-            "world": w,
-            "pearson": pearson[w],
-            "evd_random": 0.5,
-            **({"task_features": chosen[w]} if v == "auto" else {}),
-        }
+        fit_row(v, w, pearson=pearson[w], evd_random=0.5, task_features=chosen[w])
         for v, pearson, chosen in (
             ("auto", [0.5, 0.6, 0.7], ["no", "yes", "yes"]),
             ("default", [0.3, 0.6, 0.5], [None] * 3),
@@ -47,14 +45,7 @@ def test_the_choice_table_pairs_auto_with_the_default_and_counts_the_place_alone
 
 def test_the_figure_is_drawn_from_the_fits_there_are(tmp_path: Path) -> None:
     rows = [
-        {
-            "family": "multi-objectworld",
-            "demos": demos,
-            "variant": v,
-            "key": key_of(v),
-            "world": w,
-            "pearson": p,
-        }
+        fit_row(v, w, demos=demos, pearson=p)
         for demos in (3, 10)
         for v, p in (("default", 0.5), ("none", 0.2))
         for w in (0, 1)
@@ -66,16 +57,13 @@ def test_the_figure_is_drawn_from_the_fits_there_are(tmp_path: Path) -> None:
 
 def test_the_other_worlds_table_averages_only_worlds_from_its_first_and_lists_only_fitted_rows() -> None:
     rows = [
-        {
-            "family": "multi-objectworld",
-            "demos": 3,
-            "variant": v,
-            "key": key_of(v),
-            "world": w,
-            "pearson": p + (0.5 if w < 6 else 0.0),  # the table's worlds would lift the mean by 0.5
-            "evd_random": 0.1,
-            "epic": 0.2,
-        }
+        fit_row(
+            v,
+            w,
+            pearson=p + (0.5 if w < 6 else 0.0),  # the table's worlds would lift the mean by 0.5
+            evd_random=0.1,
+            epic=0.2,
+        )
         for v, p in (("default", 0.4), ("none", 0.1))
         for w in (0, 1, 6, 7)
     ]
