@@ -4,7 +4,7 @@ A family (objectworld, binaryworld) builds a `RewardWorld`; `single_task` gives 
 benchmark's demonstrations (short paths of the demonstrator from uniform starts), `goal_tasks` its
 multi-task form (the meta case): T tasks whose reward is the world's plus a bonus at a random goal cell.
 Both demonstrators are Boltzmann-rational like the terrain's: softmax(rationality·Q_soft) of the task's
-true reward. numpy and scipy only, seeded.
+true reward, or with an infinite rationality the optimal policy (`terrain.demonstrator_policy`). numpy and scipy only, seeded.
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from metairl_engine.mdp import MDP
-from metairl_engine.planning import transition_matrix, value_iteration
-from metairl_engine.sim.terrain import SimTask, rollout, tasks_with_goals
+from metairl_engine.planning import transition_matrix
+from metairl_engine.sim.terrain import SimTask, demonstrator_policy, rollout, tasks_with_goals
 
 
 @dataclass(frozen=True)
@@ -40,7 +40,7 @@ def single_task(
     random starts (the published objectworld protocol: paths of 8 steps)."""
     rng = np.random.default_rng(seed)
     p = transition_matrix(world.mdp)
-    policy = _policy(world.mdp, world.reward, rationality)
+    policy = demonstrator_policy(p, world.reward, gamma=world.mdp.gamma, rationality=rationality)
     demos = [rollout(world.mdp, p, policy, goal=None, max_length=length, rng=rng) for _ in range(n_demos)]
     return SimTask(name="world", goal=-1, true_reward=world.reward.astype(np.float32), trajectories=demos)
 
@@ -69,9 +69,3 @@ def goal_tasks(
         rationality=rationality,
         max_length=max_length,
     )
-
-
-def _policy(mdp: MDP, reward: np.ndarray, rationality: float) -> np.ndarray:
-    """The Boltzmann-rational demonstrator's policy softmax(rationality·Q_soft) of ``reward``."""
-    p = transition_matrix(mdp)
-    return value_iteration(p, reward, gamma=mdp.gamma, backup="soft", confidence=rationality).policy

@@ -8,6 +8,7 @@ the goal or a step cap. numpy and scipy only, seeded: the demo CLI and the servi
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -110,12 +111,23 @@ def tasks_with_goals(
     for goal in goals:
         reward = np.array(base_reward, dtype=np.float64)
         reward[goal] += goal_bonus
-        policy = value_iteration(p, reward, gamma=mdp.gamma, backup="soft", confidence=rationality).policy
+        policy = demonstrator_policy(p, reward, gamma=mdp.gamma, rationality=rationality)
         trajectories = [
             rollout(mdp, p, policy, goal=int(goal), max_length=cap, rng=rng) for _ in range(n_demos)
         ]
         tasks.append(SimTask(f"goal {goal}", int(goal), reward.astype(np.float32), trajectories))
     return tasks
+
+
+def demonstrator_policy(
+    p: sp.csr_matrix, reward: np.ndarray, *, gamma: float, rationality: float
+) -> np.ndarray:
+    """The demonstrator's policy (S, A) for ``reward`` under transitions ``p``: softmax(rationality·Q_soft),
+    Boltzmann-rational; with ``rationality`` infinite, the optimal policy itself (greedy in Q*, ties shared), as
+    the published objectworld toolkits demonstrate it."""
+    if math.isinf(rationality):
+        return value_iteration(p, reward, gamma=gamma, backup="max").policy
+    return value_iteration(p, reward, gamma=gamma, backup="soft", confidence=rationality).policy
 
 
 def rollout(

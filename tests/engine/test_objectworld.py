@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from metairl_engine import validate_trajectories
 from metairl_engine.metrics import expected_value_difference
-from metairl_engine.planning import transition_matrix
+from metairl_engine.planning import transition_matrix, value_iteration
 from metairl_engine.sim.benchmark import goal_tasks, single_task
 from metairl_engine.sim.objectworld import Objects, make_objectworld, objectworld_features, objectworld_reward
+from metairl_engine.sim.terrain import demonstrator_policy
 
 # Object A at (0, 0): inner colour 1, outer 0; object B at (4, 0): inner 0, outer 1.
 TWO_OBJECTS = Objects(xy=np.array([[0, 0], [4, 0]]), inner=np.array([1, 0]), outer=np.array([0, 1]))
@@ -66,3 +69,20 @@ def test_goal_tasks_add_a_bonus_at_each_goal_and_demonstrate_valid_paths() -> No
         assert all(tr.states[0] != task.goal for tr in task.trajectories)
     single = single_task(world, n_demos=5, seed=0)
     assert [len(tr.actions) for tr in single.trajectories] == [8] * 5
+
+
+def test_an_infinitely_rational_demonstrator_takes_only_optimal_actions() -> None:
+    world, _ = make_objectworld(seed=3, size=8, n_objects=6)
+    p = transition_matrix(world.mdp)
+    q_star = value_iteration(p, world.reward, gamma=world.mdp.gamma, backup="max").q
+    optimal = demonstrator_policy(p, world.reward, gamma=world.mdp.gamma, rationality=math.inf)
+    best = q_star >= q_star.max(axis=1, keepdims=True) - 1e-12
+    np.testing.assert_allclose(optimal.sum(axis=1), 1.0)
+    assert (optimal[~best] == 0).all()
+    # Every demonstrated action is one of the optimal ones; a Boltzmann demonstrator's are not.
+    task = single_task(world, n_demos=20, seed=0, rationality=math.inf)
+    assert all(best[s, a] for tr in task.trajectories for s, a in zip(tr.states, tr.actions, strict=False))
+    noisy = single_task(world, n_demos=20, seed=0, rationality=0.5)
+    assert not all(
+        best[s, a] for tr in noisy.trajectories for s, a in zip(tr.states, tr.actions, strict=False)
+    )
