@@ -627,13 +627,14 @@ pick the place alone on a sixth to four fifths of the worlds and the Pearson mov
 colours −0.028 ± 0.019 on worlds 0 … 5, +0.004 ± 0.007 on 6 … 17; multi-binaryworld −0.005 ± 0.013 and +0.035
 ± 0.020; frozen: three colours −0.002, 16×16 binaryworld −0.015, 64×64 −0.035 ± 0.035, its one switch world
 2 at 0.216 against 0.424; on the frozen families' worlds 6 … 17, discrete +0.084 ± 0.020 with ten of twelve
-kept, the others within ±0.013, 64×64 never switching). There the baseline also improves (multi-binaryworld 0.29 to 0.49 where switched)
-but each task's deviation from it takes the gain back: a task's reward, goal excluded, ends further from the
-truth than the baseline itself (multi-binaryworld world 0: 0.28 against the baseline's 0.52), its learned
-deviation a bump around the goal and along the demonstrations' route. On the random graph (frozen) the place
-alone never won: it does not rescue that family. With the optimal demonstrator (frozen) it won on five of six
-worlds and was wrong there: −0.087 ± 0.044 against the default, EVD / random 0.358 against 0.305. So it is not the default: its gain is on indicator features,
-and it costs a second fit (about twice the CPU time) wherever there is a choice."""
+kept, the others within ±0.013, 64×64 never switching). There the baseline also improves (multi-binaryworld
+0.29 to 0.49 where switched) but each task's deviation from it takes the gain back: a task's reward, goal
+excluded, ends further from the truth than the baseline itself (multi-binaryworld world 0: 0.28 against the
+baseline's 0.52), its learned deviation a bump around the goal and along the demonstrations' route. On the
+random graph (frozen) the place alone never won: it does not rescue that family. With the optimal demonstrator
+(frozen) it won on five of six worlds and was wrong there: −0.087 ± 0.044 against the default, EVD / random
+0.358 against 0.305. So it is not the default: its gain is on indicator features, and it costs a second fit
+(about twice the CPU time) wherever there is a choice."""
 
 SPARSE_FINDINGS = """### Sparse deviations (engine `sparse-deviations` against `input-scale`)
 
