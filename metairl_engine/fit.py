@@ -32,7 +32,7 @@ from metairl_engine.config import FitConfig, baseline_column_issues, ensemble_si
 from metairl_engine.coordinates import COORDINATE_OCTAVES, state_coordinates
 from metairl_engine.demos import validate_trajectories
 from metairl_engine.errors import Cancelled, InvalidInput, Issue, check
-from metairl_engine.holdout import Steps, split_steps
+from metairl_engine.holdout import Steps, repeats_its_decisions, split_steps
 from metairl_engine.mdp import MDP
 from metairl_engine.memory import EVAL_CHUNK, TRAIN_CHUNK, retained_heap
 from metairl_engine.networks import StackedMLP, fourier_features
@@ -212,8 +212,9 @@ class _Problem:
             else _encode(features if base_columns is None else features[:, base_columns], config)
         )
         demos = [t.trajectories for t in tasks]
+        distinct = repeats_its_decisions(demos)
         folds = [
-            split_steps(demos, fraction=config.holdout_fraction, seed=config.seed, fold=k)
+            split_steps(demos, fraction=config.holdout_fraction, seed=config.seed, fold=k, distinct=distinct)
             for k in range(self.n_members)
         ]
         self.train = _stack_members([train for train, _ in folds], self.n_tasks)
