@@ -153,7 +153,9 @@ class FitConfig:
     """Fraction of each task's demonstrated steps held out to choose the stopping step by held-out
     likelihood, never by the true reward: the kept parameters are those of the last step whose held-out
     NLL is within one standard error of the best (see fit.HeldOutStopper). 0 disables the hold-out; the
-    fit then runs on all steps to ``max_steps`` or ``tolerance``."""
+    fit then runs on all steps to ``max_steps`` or ``tolerance``. A demonstrator that always repeats its action
+    where it returns has its repeated steps counted once, training and held-out alike
+    (`holdout.repeats_its_decisions`)."""
 
     patience: int = field(default=200, metadata=bounds(ge=0))
     """Stop once the held-out NLL has made no meaningful progress (a new best by more than one standard error
