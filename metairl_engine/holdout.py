@@ -40,25 +40,24 @@ MIN_REVISITED = 10
 """`repeats_its_decisions` says no with fewer revisited states than this: too few to tell."""
 
 
+def distinct_steps(states: np.ndarray, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each distinct (state, action) pair once, in the order of its first occurrence."""
+    _, first = np.unique(np.stack([states, actions]), axis=1, return_index=True)
+    first = np.sort(first)
+    return states[first], actions[first]
+
+
 def repeats_its_decisions(demonstrations: Sequence[Sequence[Trajectory]]) -> bool:
     """Whether the demonstrator acts deterministically: at ≥ DETERMINISTIC_SHARE of the (task, state) pairs
     visited more than once (at least MIN_REVISITED of them), every visit took the same action."""
     revisited = same = 0
     for trajectories in demonstrations:
         states, actions = state_action_pairs(trajectories)
-        pairs = np.unique(np.stack([states, actions]), axis=1)
-        n_actions = np.bincount(pairs[0])  # distinct actions taken per state
         visits = np.bincount(states)
+        n_actions = np.bincount(distinct_steps(states, actions)[0], minlength=len(visits))
         revisited += int((visits >= 2).sum())
-        same += int(((visits >= 2) & (n_actions[: len(visits)] == 1)).sum())
+        same += int(((visits >= 2) & (n_actions == 1)).sum())
     return revisited >= MIN_REVISITED and same >= DETERMINISTIC_SHARE * revisited
-
-
-def distinct_steps(states: np.ndarray, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each distinct (state, action) pair once, in the order of its first occurrence."""
-    _, first = np.unique(np.stack([states, actions]), axis=1, return_index=True)
-    first = np.sort(first)
-    return states[first], actions[first]
 
 
 def split_steps(
