@@ -68,6 +68,16 @@ def test_a_sparse_deviation_zeroes_the_smallest_share_and_keeps_the_order_of_the
     assert torch.equal(sparse_deviation(deviation, 0.0), deviation)
 
 
+def test_the_sparsest_candidate_keeps_a_goal_and_zeroes_the_wiggles_around_it() -> None:
+    # What a goal task adds on a few hundred states: one large bump, and small noise everywhere else.
+    rng = np.random.default_rng(0)
+    deviation = torch.from_numpy(rng.normal(0.0, 0.05, size=(1, 400)))
+    deviation[0, 123] = 3.0
+    kept = sparse_deviation(deviation, max(SPARSITY))
+    assert int((kept != 0).sum()) <= 2 and float(kept[0, 123]) > 2.5
+    assert int((sparse_deviation(deviation, 0.95) != 0).sum()) >= 19  # the next candidate keeps 20 states
+
+
 def test_the_choice_is_the_sparsest_candidate_within_one_standard_error_then_the_largest_share() -> None:
     noise = torch.tensor([-1.0, 1.0] * 50)  # per-step NLLs with a standard error of about 0.1
     nll = {
