@@ -113,7 +113,7 @@ def test_run_page_draws_the_loss_curve_settings_best_step_shrinkage_and_sparsity
     )
     sparsity = page.locator("#run-facts [data-role='sparsity']").inner_text()
     if job["sparsity"]:
-        zeroed = f"the smallest {round(100 * job['sparsity'])} % of each task's deviations from the baseline"
+        zeroed = f"the smallest {100 * job['sparsity']:.3g} % of each task's deviations from the baseline"
         assert sparsity == f"q {job['sparsity']:g} ({zeroed} set to zero)"
     else:
         assert sparsity == "q 0 (every state's deviation from the baseline kept)"

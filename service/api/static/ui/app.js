@@ -1381,7 +1381,7 @@ function shrinkageText(shrinkage) {
 function sparsityText(sparsity) {
   if (sparsity === null || sparsity === undefined) return "–";
   if (sparsity === 0) return "q 0 (every state's deviation from the baseline kept)";
-  return `q ${sparsity} (the smallest ${Math.round(100 * sparsity)} % of each task's deviations from the baseline set to zero)`;
+  return `q ${sparsity} (the smallest ${+(100 * sparsity).toFixed(1)} % of each task's deviations from the baseline set to zero)`;
 }
 
 function downloadsLater(job) {
