@@ -24,7 +24,7 @@ FAMILIES = HERE / "FAMILIES.md"
 """Another benchmark's page of accuracy per benchmark family; included when it exists."""
 GRID_ENGINE = "baddbmm-step"
 """The engine the stored path-planning grid ran on (`accuracy.ENGINE` documents the names)."""
-BEFORE_ENGINE = "cheap-step"
+BEFORE_ENGINE = "sparse-deviations"
 """The engine before today's, whose terrain ablation rows the accuracy section compares with."""
 UNRECORDED = "not recorded"
 
@@ -73,6 +73,11 @@ def provenance_lines(runs: list[dict[str, Any] | None], commands: list[str]) -> 
         if run.get("note"):
             lines.append(f"- Note: {run['note']}.")
     return lines
+
+
+def machines(rows: list[dict[str, Any]]) -> set[str]:
+    """The processors ``rows`` ran on, as their provenance names them (a carried row names where it first ran)."""
+    return {r["provenance"]["machine"].get("cpu", UNRECORDED) for r in rows if r.get("provenance")}
 
 
 def accuracy_section() -> list[str]:
@@ -131,9 +136,16 @@ def accuracy_section() -> list[str]:
                     f"({np.mean(paired):+.3f} ± {se:.3f})"
                 )
     if changes:
+        elsewhere = not machines(before) & machines([r for r in rows if "carried_from" not in r])
         out += [
-            f"Against the engine before (`{BEFORE_ENGINE}`, task deviations shrunk by λ alone; its rows stay in the "
-            f"cache): before → today, and the change paired by world ± its standard error: {'; '.join(changes)}.",
+            f"Against the engine before (`{BEFORE_ENGINE}`, no candidate sparser than q = 0.95; its rows stay in the "
+            f"cache): before → today, and the change paired by world ± its standard error: {'; '.join(changes)}."
+            + (
+                " The engine before's rows ran on another machine, whose fits differ by up to about ±0.02 per "
+                'world: docs/method.md ("The sparsest candidates") scores both engines\' choices on the same fits.'
+                if elsewhere
+                else ""
+            ),
             "",
         ]
     if FAMILIES.exists():
@@ -147,7 +159,7 @@ def accuracy_section() -> list[str]:
         "",
         "The repo's generator, 10 worlds × tasks 1, 2, 4, 8, 16 × demonstrations 1, 3, 10 × the five sharing "
         f"losses ({len(grid)} fits, one thread). These rows ran on the `{GRID_ENGINE}` engine, an earlier one: the "
-        f"method of `{BEFORE_ENGINE}` (no sparse task deviations) with the step before its cheaper rewrite "
+        "method of `cheap-step` (no sparse task deviations) with the step before its cheaper rewrite "
         "(`benchmarks/accuracy.py`, `ENGINE`).",
         "",
         *provenance_lines(
