@@ -7,6 +7,7 @@ import re
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -54,3 +55,14 @@ def test_every_table_names_its_command_and_provenance() -> None:
 
 def test_the_page_holds_no_history() -> None:
     assert not HISTORY.findall(results.page())
+
+
+def test_the_machines_of_rows_are_their_processors_and_rows_without_provenance_name_none() -> None:
+    rows: list[dict[str, Any]] = [
+        {"provenance": {"machine": {"cpu": "AMD EPYC"}}},
+        {"provenance": {"machine": {"cpu": "Intel Xeon"}}},
+        {"provenance": {"machine": {}}},
+        {"variant": "none"},
+    ]
+    assert results.machines(rows) == {"AMD EPYC", "Intel Xeon", results.UNRECORDED}
+    assert results.machines(rows[3:]) == set()
