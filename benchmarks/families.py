@@ -443,9 +443,9 @@ def table(
 
 
 def choice_table(rows: list[dict[str, Any]], *, first: int, worlds: int, engine: str = SPARSE) -> str:
-    """Markdown: per family × demos with fits of the variant ``auto`` (`FitConfig.task_features`) on ``engine``
-    and worlds ``first`` … ``worlds`` − 1, its Pearson and EVD / random against the default's and none's on those worlds,
-    and on how many of them it kept the place alone."""
+    """Markdown: per family × demos with fits of the variant ``auto`` (`FitConfig.task_features`) on
+    ``engine`` and worlds ``first`` … ``worlds`` − 1, its Pearson and EVD / random against the default's and
+    none's on those worlds, and on how many of them it kept the place alone."""
     lines = [
         "| family | demos | auto Pearson | default Pearson | auto − default (± s.e.) | auto − none (± s.e.) | "
         "auto EVD/rand | default EVD/rand | none EVD/rand | place alone kept |",

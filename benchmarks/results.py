@@ -76,7 +76,7 @@ def provenance_lines(runs: list[dict[str, Any] | None], commands: list[str]) -> 
 
 
 def machines(rows: list[dict[str, Any]]) -> set[str]:
-    """The processors ``rows`` ran on, as their provenance names them (a carried row names where it first ran)."""
+    """The processors ``rows`` ran on, as their provenance names them (a carried row: where it first ran)."""
     return {r["provenance"]["machine"].get("cpu", UNRECORDED) for r in rows if r.get("provenance")}
 
 
@@ -138,11 +138,13 @@ def accuracy_section() -> list[str]:
     if changes:
         elsewhere = not machines(before) & machines([r for r in rows if "carried_from" not in r])
         out += [
-            f"Against the engine before (`{BEFORE_ENGINE}`, no candidate sparser than q = 0.95; its rows stay in the "
-            f"cache): before → today, and the change paired by world ± its standard error: {'; '.join(changes)}."
+            f"Against the engine before (`{BEFORE_ENGINE}`, no candidate sparser than q = 0.95; its rows stay "
+            f"in the cache): before → today, and the change paired by world ± its standard error: "
+            f"{'; '.join(changes)}."
             + (
-                " The engine before's rows ran on another machine, whose fits differ by up to about ±0.02 per "
-                'world: docs/method.md ("The sparsest candidates") scores both engines\' choices on the same fits.'
+                " The engine before's rows ran on another machine, whose fits differ by up to about ±0.02 "
+                'per world: docs/method.md ("The sparsest candidates") scores both engines\' choices on the '
+                "same fits."
                 if elsewhere
                 else ""
             ),

@@ -132,10 +132,10 @@ class JobOut(Resource):
         "kept.",
     )
     sparsity: float | None = Field(
-        description="The share q ∈ {0, 0.5, 0.9, 0.95, 0.99, 0.995} of each task's states whose deviation from the baseline "
-        "S_q set to zero (a soft threshold at that quantile of the deviation's size: what a task adds to the "
-        "shared reward, a goal or an obstacle, is mostly local). 0: every deviation kept; 1 with λ 0. Null as "
-        "`shrinkage` is, and for jobs that succeeded before q was kept.",
+        description="The share q ∈ {0, 0.5, 0.9, 0.95, 0.99, 0.995} of each task's states whose deviation "
+        "from the baseline S_q set to zero (a soft threshold at that quantile of the deviation's size: what "
+        "a task adds to the shared reward, a goal or an obstacle, is mostly local). 0: every deviation kept; "
+        "1 with λ 0. Null as `shrinkage` is, and for jobs that succeeded before q was kept.",
     )
     updated_at: datetime
     started_at: datetime | None
