@@ -109,9 +109,9 @@ class FitConfig:
     deviation from it, made sparse by S_q, which zeroes the smallest share q of the states' deviations (a soft
     threshold; what a task adds to the shared reward — a goal, an obstacle — is mostly local). λ ∈ {0, ¼, ½,
     ¾, 1} and q ∈ {0, ½, 0.9, 0.95, 0.99, 0.995}: of the candidates whose optimal policies predict the
-    held-out steps within one standard error of the best (the ensemble's K-fold held-out NLL), the sparsest,
-    then the largest λ. With a few demonstrations much of a deviation is noise the held-out steps do not
-    bear out.
+    held-out steps within one standard error of the best (the ensemble's K-fold held-out NLL), the one whose
+    rewards depart least from the baseline, Σ|λ·S_q(r_i − r_b)|: the most sharing the held-out steps allow.
+    With a few demonstrations much of a deviation is noise the held-out steps do not bear out.
     Costs one value iteration per candidate on every state after the fit, so only up to `shrinkage.BUDGET`
     (2^17) task-states T·K·S: an 80,000-state fit keeps λ = 1, q = 0. Only with sharing (a baseline to
     shrink towards) and a hold-out; the choice is `FitResult.shrinkage` and `FitResult.sparsity`. False:

@@ -10,8 +10,9 @@ and keeping the large ones. Each candidate has its own optimal Q (value iteratio
 ensemble's K members, each scored on the fold of steps it held out, give a cross-validated NLL per candidate.
 The held-out steps of a few demonstrations cannot tell most candidates apart, so the choice follows the
 one-standard-error rule the stopping step uses (Hastie et al., ESL §7.10): of the candidates within one
-standard error of the best, the sparsest, then the one that shrinks least (`FitConfig.shrink_deviations`,
-docs/method.md "Shrinking towards the baseline").
+standard error of the best, the simplest, here the one whose rewards depart least from the baseline,
+Σ|λ·S_q(r_i − r_b)| (the L1 norm S_q is the proximal step of): the most reward sharing the held-out steps
+allow (`FitConfig.shrink_deviations`, docs/method.md "Shrinking towards the baseline").
 """
 
 from __future__ import annotations
@@ -105,7 +106,7 @@ def shrink_deviations(
     bgi_k: float,
 ) -> Shrunk:
     """Of the rewards r_b + λ·S_q(r − r_b) (λ in SHRINKAGE, q in SPARSITY) whose held-out NLL is within one
-    standard error of the best, the sparsest, then the largest λ; with its Q* and V*.
+    standard error of the best, the one that departs least from the baseline; with its Q* and V*.
 
     ``rewards`` (N, S) are the networks' rewards, ``baseline`` (N, S) the baseline each is shrunk towards,
     ``q`` and ``values`` the networks' own Q and V (the optimal ones of ``rewards``: λ = 1, q = 0 costs
@@ -113,10 +114,13 @@ def shrink_deviations(
     """
     deviation = rewards - baseline
     nll: dict[tuple[float, float], torch.Tensor] = {(1.0, 0.0): score(q)}
+    departure: dict[tuple[float, float], float] = {}
     for sparsity in SPARSITY:
         kept = sparse_deviation(deviation, sparsity)
+        size = float(kept.abs().sum())
         start = values  # each λ starts from the values of the one before it on this q: they are close
         for shrinkage in sorted(SHRINKAGE, reverse=True):
+            departure.setdefault((shrinkage, sparsity if shrinkage else 0.0), shrinkage * size)
             if (shrinkage, sparsity) in nll or (shrinkage == 0.0 and sparsity > 0.0):
                 continue  # λ = 0 is the baseline whatever q
             q_shrunk, start = optimal_q(
@@ -129,7 +133,7 @@ def shrink_deviations(
                 tolerance=SCORE_TOLERANCE,
             )
             nll[shrinkage, sparsity] = score(q_shrunk)
-    shrinkage, sparsity = one_standard_error_choice(nll)
+    shrinkage, sparsity = one_standard_error_choice(nll, departure)
     if (shrinkage, sparsity) == (1.0, 0.0):
         return Shrunk(1.0, 0.0, rewards, q, values)
     shrunk = baseline + shrinkage * sparse_deviation(deviation, sparsity)
@@ -137,13 +141,12 @@ def shrink_deviations(
     return Shrunk(shrinkage, 1.0 if shrinkage == 0.0 else sparsity, shrunk, q_shrunk, v_shrunk)
 
 
-def one_standard_error_choice(nll: Mapping[tuple[float, float], torch.Tensor]) -> tuple[float, float]:
-    """The (λ, q) to keep, given each candidate's NLL per held-out step: of those whose mean is within one
-    standard error (of the best's per-step NLLs) of the best, the sparsest (λ = 0: every deviation gone),
-    then the largest λ."""
+def one_standard_error_choice(
+    nll: Mapping[tuple[float, float], torch.Tensor], departure: Mapping[tuple[float, float], float]
+) -> tuple[float, float]:
+    """The (λ, q) to keep, given each candidate's NLL per held-out step and its rewards' departure from the
+    baseline Σ|λ·S_q(r − r_b)|: of the candidates whose mean NLL is within one standard error (of the best's
+    per-step NLLs) of the best, the one that departs least (λ = 0, the baseline alone, departs by nothing)."""
     best = min(nll.values(), key=lambda v: float(v.mean()))
     within = float(best.mean()) + (float(best.std()) / best.numel() ** 0.5 if best.numel() > 1 else 0.0)
-    return max(
-        (choice for choice, v in nll.items() if float(v.mean()) <= within),
-        key=lambda c: (1.0 if c[0] == 0.0 else c[1], c[0]),
-    )
+    return min((choice for choice, v in nll.items() if float(v.mean()) <= within), key=departure.__getitem__)

@@ -11,6 +11,7 @@ import pytest
 import torch
 
 import metairl_engine.fit as fit_module
+import metairl_engine.shrinkage as shrinkage_module
 from metairl_engine import FitConfig
 from metairl_engine.backups import QRows
 from metairl_engine.fit import fit
@@ -78,19 +79,51 @@ def test_the_sparsest_candidate_keeps_a_goal_and_zeroes_the_wiggles_around_it() 
     assert int((sparse_deviation(deviation, 0.95) != 0).sum()) >= 19  # the next candidate keeps 20 states
 
 
-def test_the_choice_is_the_sparsest_candidate_within_one_standard_error_then_the_largest_share() -> None:
+def test_the_choice_is_the_candidate_within_one_standard_error_that_departs_least_from_the_baseline() -> None:
     noise = torch.tensor([-1.0, 1.0] * 50)  # per-step NLLs with a standard error of about 0.1
     nll = {
         (1.0, 0.0): 1.0 + noise,
         (0.5, 0.0): 0.95 + noise,  # the best
         (1.0, 0.9): 1.02 + noise,
-        (0.75, 0.9): 1.04 + noise,
-        (1.0, 0.95): 1.2 + noise,  # sparser, but worse by two standard errors
-        (0.0, 0.0): 1.5 + noise,  # the baseline alone: sparsest of all, far worse
+        (0.5, 0.9): 1.04 + noise,
+        (0.25, 0.0): 1.2 + noise,  # departs least but the baseline's, worse by two standard errors
+        (0.0, 0.0): 1.5 + noise,  # the baseline alone: departs by nothing, far worse
     }
-    assert one_standard_error_choice(nll) == (1.0, 0.9)
+    # Σ|λ·S_q(d)|: S_0.9 keeps a fifth of the deviation's L1 norm here
+    departure = {(lam, q): lam * (1.0 if q == 0.0 else 0.2) for lam, q in nll}
+    assert one_standard_error_choice(nll, departure) == (0.5, 0.9)
+    nll[1.0, 0.9] = 0.94 + noise  # a new best changes nothing: (0.5, 0.9) is still within one standard error
+    assert one_standard_error_choice(nll, departure) == (0.5, 0.9)
     nll[0.0, 0.0] = 1.0 + noise
-    assert one_standard_error_choice(nll) == (0.0, 0.0)
+    assert one_standard_error_choice(nll, departure) == (0.0, 0.0)
+
+
+def test_each_candidate_departs_from_the_baseline_by_the_l1_norm_of_its_kept_deviation(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    mdp = small_grid(size=4)
+    every = np.arange(mdp.n_states)
+    rows = QRows([mdp, mdp], np.repeat([0, 1], mdp.n_states), np.tile(every, 2), columns=every, n_columns=16)
+    gamma = torch.full((2,), mdp.gamma, dtype=torch.float32)
+    generator = torch.Generator().manual_seed(0)
+    baseline = torch.randn(2, mdp.n_states, generator=generator)
+    rewards = baseline + torch.randn(2, mdp.n_states, generator=generator)
+    q, values = optimal_q(rows, rewards, gamma, values=torch.zeros(2, mdp.n_states), kind="max", bgi_k=10.0)
+    seen: dict[tuple[float, float], float] = {}
+
+    def record(nll: object, departure: dict[tuple[float, float], float]) -> tuple[float, float]:
+        seen.update(departure)
+        return (0.0, 0.0)
+
+    monkeypatch.setattr(shrinkage_module, "one_standard_error_choice", record)
+    shrunk = shrinkage_module.shrink_deviations(
+        rows, rewards, baseline, gamma, q=q, values=values, score=lambda q: q[:, 0, 0], kind="max", bgi_k=10.0
+    )
+    assert set(seen) == {(lam, q) for lam in SHRINKAGE for q in SPARSITY if lam > 0} | {(0.0, 0.0)}
+    for (lam, sparsity), size in seen.items():
+        kept = sparse_deviation(rewards - baseline, sparsity)
+        assert size == pytest.approx(lam * float(kept.abs().sum()), rel=1e-5)
+    torch.testing.assert_close(shrunk.rewards, baseline)  # the candidate chosen is what is returned
 
 
 def test_without_a_baseline_or_a_hold_out_the_task_rewards_are_kept_as_learned() -> None:
