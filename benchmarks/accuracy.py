@@ -34,16 +34,17 @@ ROOT = Path(__file__).resolve().parents[1]
 
 SHARINGS = ("none", "l2", "huber", "std", "entropy")
 
-ENGINE = "sparser-deviations"
+ENGINE = "least-departure"
 """The engine's implementation beyond its config, stored with every cached row (here and in ablation.py) so
-no stale row is reused: rename it, and relabel ablation's rows, when the fit changes. ``sparser-deviations``
-is today's engine (task deviations from the baseline made sparse down to 0.5 % of the states kept,
-`shrinkage.SPARSITY`); ``sparse-deviations`` is the engine before (no candidate sparser than q = 0.95), whose
-ablation rows stay for before/after, and whose fits without sharing are carried (``carried_from``: no
-baseline, no choice); ``cheap-step`` the one before that (deviations shrunk by λ alone); ``baddbmm-step``
-is the method of ``cheap-step`` (automatic ensemble, cross-validated calibrated held-out NLL, patience
-restarted only by a new best beyond one standard error) with its step before the cheaper rewrite (bias as a
-column of ones, gathers by index_select, fused Adam), whose rounding alone moves a 10-world mean by about
+no stale row is reused: rename it, and relabel ablation's rows, when the fit changes. ``least-departure`` is
+today's engine (of the candidates within one standard error, the one whose task rewards depart least from the
+baseline, `shrinkage.one_standard_error_choice`); ``sparser-deviations`` is the engine before (the sparsest
+candidate, then the largest λ), whose ablation rows stay for before/after, and whose fits without sharing are
+carried (``carried_from``: no baseline, no choice); ``sparse-deviations`` the one before that (no candidate
+sparser than q = 0.95), ``cheap-step`` the one before that (deviations shrunk by λ alone); ``baddbmm-step`` is
+the method of ``cheap-step`` (automatic ensemble, cross-validated calibrated held-out NLL, patience restarted
+only by a new best beyond one standard error) with its step before the cheaper rewrite (bias as a column of
+ones, gathers by index_select, fused Adam), whose rounding alone moves a 10-world mean by about
 0.01."""
 HERE = Path(__file__).resolve().parent
 
