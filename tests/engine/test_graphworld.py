@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from metairl_engine.mdp import MDP
+from metairl_engine.planning import transition_matrix
 from metairl_engine.sim.graphworld import graphworld_reward, make_graphworld
 
 # Eight states on a line, moving right only (the last stays put): hops count moves either way round.
@@ -28,3 +29,17 @@ def test_a_world_has_distance_features_no_layout_and_is_seeded() -> None:
     assert set(np.unique(world.reward)) <= {-1.0, 0.0, 1.0}
     np.testing.assert_array_equal(world.reward, make_graphworld(seed=3, n_states=256).reward)
     assert not np.array_equal(world.reward, make_graphworld(seed=4, n_states=256).reward)
+
+
+def test_wind_randomises_which_move_an_action_takes_and_keeps_the_moves_and_the_reward() -> None:
+    still, windy = make_graphworld(seed=3, n_states=64), make_graphworld(seed=3, n_states=64, wind=0.3)
+    assert still.mdp.next_state is not None and windy.mdp.next_state is None
+    np.testing.assert_array_equal(windy.reward, still.reward)
+    np.testing.assert_array_equal(windy.mdp.features, still.mdp.features)
+    p = transition_matrix(windy.mdp).toarray().reshape(64, 5, 64)
+    np.testing.assert_allclose(p.sum(axis=2), 1.0)
+    # The chosen move with 1 − 0.3 + 0.3/5, each other one of the state's five (itself, its 4 nearest) 0.3/5.
+    for state in (0, 17):
+        targets = still.mdp.next_state[state]
+        assert len(set(targets)) == 5
+        np.testing.assert_allclose(p[state][:, targets], np.full((5, 5), 0.06) + 0.7 * np.eye(5), rtol=1e-6)
