@@ -89,9 +89,22 @@ def grid_mdp(
         next_state = np.tile(np.arange(len(disp)) * (width * height) + next_state, (8, 1))
     layout = Layout(width=width, height=height, channels=8 if velocity else 1)
     features = layout_features(layout)
+    return slipped_mdp(next_state, float(slip), gamma=gamma, features=features, layout=layout)
+
+
+def slipped_mdp(
+    next_state: np.ndarray,
+    slip: float,
+    *,
+    gamma: float,
+    features: np.ndarray | None,
+    layout: Layout | None = None,
+) -> MDP:
+    """The MDP of the deterministic table ``next_state`` (S, A) whose chosen action is replaced, with probability
+    ``slip``, by a uniformly random other one: the table itself at slip 0, else sparse transitions (`_slipped`)."""
     if slip == 0.0:
         return MDP.build(gamma=gamma, next_state=next_state, features=features, layout=layout)
-    s, a, nxt, p = slipped_transitions(next_state, float(slip))
+    s, a, nxt, p = _slipped(next_state, slip)
     return MDP.build(
         gamma=gamma,
         n_states=next_state.shape[0],
@@ -171,11 +184,8 @@ def layout_features(layout: Layout) -> np.ndarray:
     return np.concatenate([xy, channel], axis=1)
 
 
-def slipped_transitions(
-    next_state: np.ndarray, slip: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Sparse (s, a, next, p) of the deterministic table ``next_state`` (S, A) where action a is replaced by
-    each other action with prob slip/(A-1).
+def _slipped(next_state: np.ndarray, slip: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Sparse (s, a, next, p): action a is replaced by each other action with prob slip/(A-1).
 
     Targets repeated within a state's row (walls, stay) are merged, without a global sort: for every
     (s, a) and every distinct target g of row s, p = slip/(A-1) · #{b: T[s,b]=g} + (1-slip-slip/(A-1))·[T[s,a]=g].

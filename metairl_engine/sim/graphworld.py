@@ -1,14 +1,14 @@
 """Objectworld's rule on a random geometric graph: a world with no grid and no layout.
 
 States are ``n`` random points in the unit square; action 0 stays and action j moves to the state's j-th
-nearest other point (deterministic; with ``wind``, objectworld's uniformly random action may replace the chosen
-one). Objects sit on 5 % of the points, each with an inner and an outer colour out of C, as in Levine, Popović &
-Koltun (2011)'s objectworld (`sim.objectworld`); the grid's Manhattan radii become hops of the graph (moves
-either way round): +1 within 3 hops of an object of outer colour 0 and within 2 of one of outer colour 1, −1
-within 3 of outer colour 0 only, else 0. The features are
-Euclidean distances to the nearest object of each inner, then each outer colour, in units of the points'
-mean spacing 1/√n (a grid cell when n = N²). What it tests: an MDP uploaded with features and without a
-layout, whose task networks see coordinates recovered from the transition graph (`coordinates`).
+nearest other point (deterministic; with ``wind``, objectworld's uniformly random action may replace the
+chosen one). Objects sit on 5 % of the points, each with an inner and an outer colour out of C, as in Levine,
+Popović & Koltun (2011)'s objectworld (`sim.objectworld`); the grid's Manhattan radii become hops of the graph
+(moves either way round): +1 within 3 hops of an object of outer colour 0 and within 2 of one of outer colour
+1, −1 within 3 of outer colour 0 only, else 0. The features are Euclidean distances to the nearest object of
+each inner, then each outer colour, in units of the points' mean spacing 1/√n (a grid cell when n = N²). What
+it tests: an MDP uploaded with features and without a layout, whose task networks see coordinates recovered
+from the transition graph (`coordinates`).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from scipy.sparse.csgraph import shortest_path
 from scipy.spatial import cKDTree
 
 from metairl_engine.coordinates import move_graph
-from metairl_engine.grids import slipped_transitions
+from metairl_engine.grids import slipped_mdp
 from metairl_engine.mdp import MDP
 from metairl_engine.sim.benchmark import RewardWorld, wind_to_slip
 from metairl_engine.sim.objectworld import nearest_by_colour
@@ -53,13 +53,6 @@ def make_graphworld(
     inner, outer = rng.integers(n_colours, size=count), rng.integers(n_colours, size=count)
     distance = np.linalg.norm(points[:, None] - points[None, objects], axis=2) * np.sqrt(n_states)
     features = nearest_by_colour(distance, inner, outer, n_colours=n_colours, far=np.sqrt(2 * n_states))
-    columns = features.astype(np.float32)
-    if wind == 0.0:
-        mdp = MDP.build(gamma=gamma, features=columns, next_state=nearest.astype(np.int32))
-    else:
-        s, a, target, p = slipped_transitions(nearest, wind_to_slip(wind, n_neighbours + 1))
-        n_actions = n_neighbours + 1
-        mdp = MDP.build(
-            gamma=gamma, features=columns, n_states=n_states, n_actions=n_actions, s=s, a=a, next=target, p=p
-        )
+    slip = wind_to_slip(wind, n_neighbours + 1)
+    mdp = slipped_mdp(nearest.astype(np.int32), slip, gamma=gamma, features=features.astype(np.float32))
     return RewardWorld(size=round(np.sqrt(n_states)), reward=graphworld_reward(mdp, objects, outer), mdp=mdp)
