@@ -85,6 +85,13 @@ class FitConfig:
     see docs/motion.md (identifiability) for why motion fits want it. Needs state features, or the coordinates
     an MDP without them gets (``tabular_inputs="coordinates"``: x, y, then the channel one-hot of a layout)."""
 
+    baseline_elsewhere_weight: float = field(default=1.0, metadata=bounds(ge=0, le=1))
+    """How much the baseline network learns from a task's reward on the states where that task's training steps
+    give no evidence (neither visited nor one move from a visit: `evidence.py`), relative to the states where
+    they do. Off its evidence a task reward is what its network extrapolates; below 1 the baseline follows
+    the tasks that saw a state more than those that did not, while every task is still pulled toward the
+    baseline on every state. 1: every state alike (docs/method.md, "Where the baseline learns from")."""
+
     task_coordinates: bool = True
     """The task (VR) networks also see each state's coordinates (`coordinates.state_coordinates`: from the
     layout, else recovered from the transition graph) and their sinusoids at 2 octaves besides the MDP's

@@ -241,6 +241,14 @@ class _Problem:
         self.train_actions = torch.from_numpy(self.train.actions)
         self.train_tasks = torch.from_numpy(self.train.tasks)
         self.held_actions = torch.from_numpy(self.held.actions)
+        # Per (network, state): where the network's training steps give evidence, visited or one move from a
+        # visit (`FitConfig.baseline_elsewhere_weight`; not needed at weight 1).
+        self.evidence: np.ndarray | None = None
+        if config.sharing != "none" and config.baseline_elsewhere_weight != 1.0:
+            nets, reached = successor_pairs(self.mdps, self.train.tasks, self.train.states)
+            self.evidence = np.zeros(self.n_nets * self.n_states, dtype=bool)
+            self.evidence[self.train.tasks * self.n_states + self.train.states] = True
+            self.evidence[nets * self.n_states + reached] = True
         demo_tasks = np.concatenate([self.train.tasks, self.held.tasks])
         demo_states = np.concatenate([self.train.states, self.held.states])
         self.blocks = [_Block(self, share, demo_tasks, demo_states) for share in shares]
@@ -302,6 +310,10 @@ class _Block:
             member = share.tasks // problem.n_tasks  # row k of the baseline network's (K, B) outputs
             self.share_base = torch.from_numpy(member * len(self.base_states) + base_index.astype(np.int64))
             self.inputs_base = problem.inputs(self.base_states, base=True)
+            if problem.evidence is not None:  # which rows the network's training steps give evidence on
+                self.share_evidence = torch.from_numpy(
+                    problem.evidence[share.tasks * problem.n_states + share.states]
+                )
         else:
             self.base_states = np.zeros(0, dtype=np.int64)
         self.inputs_u = problem.inputs(self.states_u)  # (T·K, N, F), or (T·K, N) state indices when tabular
@@ -559,7 +571,11 @@ def objective(
     if r_b is not None:
         v = backup(block.q_share(f), kind=config.backup, bgi_k=config.bgi_k)  # V_i(s)       eq. 7
         r = f.reshape(-1).index_select(0, block.share_f) - block.share_gamma * v  # r_i      eq. 8
-        diff = r - r_b.reshape(-1).index_select(0, block.share_base)
+        base = r_b.reshape(-1).index_select(0, block.share_base)
+        weight = config.baseline_elsewhere_weight
+        if weight != 1.0:  # the same values; the baseline's gradient from rows without evidence times weight
+            base = torch.where(block.share_evidence, base, weight * base + (1.0 - weight) * base.detach())
+        diff = r - base
         shared = sharing_loss(diff, block.share_tasks, n_tasks=n_tasks, kind=config.sharing)
     loss = (irl + config.sharing_weight * shared).mean()  # eq. 1, averaged over tasks
     return loss, irl, shared

@@ -9,6 +9,7 @@ import torch
 from metairl_engine import MDP, FitConfig, InvalidInput, Trajectory
 from metairl_engine.backups import QRows, successors
 from metairl_engine.errors import Cancelled
+from metairl_engine.evidence import evidence
 from metairl_engine.fit import CONVERGED_STEPS, HeldOutStopper, _Problem, fit, gradient_step, objective
 from metairl_engine.grids import grid_mdp
 from metairl_engine.metrics import pearson
@@ -270,6 +271,34 @@ def test_bad_trajectories_are_rejected_with_task_and_step() -> None:
     with pytest.raises(InvalidInput) as exc:
         fit([task(a, [Trajectory.of([0, 1], [0])]), task(a, [Trajectory.of([0, 99], [0])])])
     assert [i.pointer for i in exc.value.issues] == ["/tasks/1/trajectories/0/states/1"]
+
+
+def test_the_baseline_learns_less_where_a_task_has_no_evidence_and_the_task_is_pulled_alike() -> None:
+    mdp = small_grid(size=5)
+    demos = soft_demos(mdp, bump_reward(5), starts=np.array([0, 24]), length=2, seed=0)
+    acted = [Trajectory(t.states[: len(t.actions)], t.actions) for t in demos]  # the steps the fit trains on
+    has_evidence = torch.from_numpy(evidence(mdp, acted) > 0)
+    runs = []
+    for weight in (1.0, 0.25):
+        config = FitConfig(baseline_elsewhere_weight=weight, sharing="l2", holdout_fraction=0.0, ensemble=1)
+        problem = _Problem([task(mdp, demos)], config)
+        block = problem.blocks[0]
+        gen = torch.Generator().manual_seed(0)
+        f = StackedMLP(n_members=1, n_inputs=2, hidden=(8,), tabular=False, generator=gen)(block.inputs_u)
+        r_b = StackedMLP(n_members=1, n_inputs=2, hidden=(8,), tabular=False, generator=gen)(
+            block.inputs_base
+        )
+        f, r_b = f.detach().requires_grad_(), r_b.detach().requires_grad_()
+        loss = objective(problem, block, f, r_b, config)[0]
+        loss.backward()
+        assert f.grad is not None and r_b.grad is not None
+        runs.append((loss.detach(), f.grad, r_b.grad[0, np.argsort(block.base_states)]))  # by state
+    (loss_1, task_grad_1, base_grad_1), (loss_w, task_grad_w, base_grad_w) = runs
+    assert 0 < int(has_evidence.sum()) < mdp.n_states
+    assert torch.equal(loss_1, loss_w) and torch.allclose(task_grad_1, task_grad_w)
+    assert torch.allclose(base_grad_w[has_evidence], base_grad_1[has_evidence])
+    assert torch.allclose(base_grad_w[~has_evidence], 0.25 * base_grad_1[~has_evidence])
+    assert base_grad_1[~has_evidence].abs().sum() > 0
 
 
 @pytest.mark.parametrize("sharing", ["none", "huber"])
