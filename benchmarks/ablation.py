@@ -94,6 +94,7 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "w3": {"sharing_weight": 3.0},
     "one-hot": {"tabular_inputs": "one_hot"},
     # The baseline learning less from a task's reward where that task's demonstrations give no evidence.
+    "elsewhere0": {"baseline_elsewhere_weight": 0.0},
     "elsewhere0.1": {"baseline_elsewhere_weight": 0.1},
     "elsewhere0.3": {"baseline_elsewhere_weight": 0.3},
 }

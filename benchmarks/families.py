@@ -255,6 +255,7 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "patience500": {"patience": 500},
     "base4": {"baseline_features": (0, 1, 2, 3)},
     # the baseline learning less from a task's reward where that task's demonstrations give no evidence
+    "elsewhere0": {"baseline_elsewhere_weight": 0.0},
     "elsewhere0.1": {"baseline_elsewhere_weight": 0.1},
     "elsewhere0.3": {"baseline_elsewhere_weight": 0.3},
 }
