@@ -6,8 +6,7 @@ The app runs on SQLite and on PostgreSQL with the fuzzer's lab holding one resou
 resource gets that resource's id, so generated bodies reach the validation behind the lookups instead of
 stopping at a 404. Each operation gets `FUZZ_EXAMPLES` requests, schema-valid and schema-violating mixed;
 then the stateful phase chains calls along the links schemathesis infers, each scenario in an empty lab of
-its own. Both together take one to one and a half
-minutes per backend on two cores. (The tests drive hypothesis themselves: `schemathesis.pytest.from_fixture` fails on pytest 9.)
+its own. Both together take one to one and a half minutes per backend on two cores. (The tests drive hypothesis themselves: `schemathesis.pytest.from_fixture` fails on pytest 9.)
 """
 
 from __future__ import annotations
@@ -56,11 +55,16 @@ def fuzz_app(tmp_path_factory: pytest.TempPathFactory, database_url: str) -> Ite
     application.state.engine.dispose()
 
 
+def new_lab_auth(app: FastAPI) -> dict[str, str]:
+    """Authorization headers of a new, empty lab."""
+    with app.state.sessionmaker() as session:
+        return {"Authorization": f"Bearer {create_key(session, f'lab-fuzz-{secrets.token_hex(4)}')}"}
+
+
 @pytest.fixture(scope="module")
 def fuzz_auth(fuzz_app: FastAPI) -> dict[str, str]:
     """Authorization headers of the fuzzer's lab."""
-    with fuzz_app.state.sessionmaker() as session:
-        return {"Authorization": f"Bearer {create_key(session, f'lab-fuzz-{secrets.token_hex(4)}')}"}
+    return new_lab_auth(fuzz_app)
 
 
 @pytest.fixture(scope="module")
@@ -138,13 +142,9 @@ def test_chained_calls_answer_as_the_openapi_document_says(fuzz_app: FastAPI) ->
     # generation").
     key: dict[str, str] = {}
 
-    def new_lab() -> None:
-        with fuzz_app.state.sessionmaker() as session:
-            key["Authorization"] = f"Bearer {create_key(session, f'lab-fuzz-{secrets.token_hex(4)}')}"
-
     class Workflow(_schema_with_key(fuzz_app, key).as_state_machine()):  # type: ignore[misc]
         def setup(self) -> None:
-            new_lab()
+            key.update(new_lab_auth(fuzz_app))
 
         def validate_response(
             self, response: Any, case: Any, additional_checks: Any = None, **kwargs: Any
