@@ -518,9 +518,16 @@ def main() -> None:
         help=f"fit from this world on (from {WORLDS}: the page's other worlds)",
     )
     parser.add_argument("--table", action="store_true", help="only print the table from the cache")
+    parser.add_argument(
+        "--cache",
+        type=Path,
+        default=CACHE,
+        help="the fits' file (another one lets two processes fit at once)",
+    )
     args = parser.parse_args()
     torch.set_num_threads(1)
-    rows: list[dict[str, Any]] = json.loads(CACHE.read_text()) if CACHE.exists() else []
+    cache: Path = args.cache
+    rows: list[dict[str, Any]] = json.loads(cache.read_text()) if cache.exists() else []
     done = {(r["family"], r["demos"], r["key"], r["world"]) for r in rows}
     for name in args.families:
         family = FAMILIES[name]
@@ -538,7 +545,7 @@ def main() -> None:
                     rows.append(
                         {"family": name, "demos": demos, "variant": v, "key": key_of(v), "world": w, **out}
                     )
-                    CACHE.write_text(json.dumps(rows, indent=0))
+                    cache.write_text(json.dumps(rows, indent=0))
                     print(
                         name,
                         demos,

@@ -90,7 +90,9 @@ class FitConfig:
     give no evidence (neither visited nor one move from a visit: `evidence.py`), relative to the states where
     they do. Off its evidence a task reward is what its network extrapolates; below 1 the baseline follows
     the tasks that saw a state more than those that did not, while every task is still pulled toward the
-    baseline on every state. 1: every state alike (docs/method.md, "Where the baseline learns from")."""
+    baseline on every state. A state exactly one task saw counts every task at 1: a single witness cannot
+    tell the shared reward from its own goal. 1: every state alike (docs/method.md, "Where the baseline
+    learns from")."""
 
     task_coordinates: bool = True
     """The task (VR) networks also see each state's coordinates (`coordinates.state_coordinates`: from the

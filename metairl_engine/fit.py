@@ -241,14 +241,19 @@ class _Problem:
         self.train_actions = torch.from_numpy(self.train.actions)
         self.train_tasks = torch.from_numpy(self.train.tasks)
         self.held_actions = torch.from_numpy(self.held.actions)
-        # Per (network, state): where the network's training steps give evidence, visited or one move from a
-        # visit (`FitConfig.baseline_elsewhere_weight`; not needed at weight 1).
+        # Per (network, state): where the baseline learns from the network's reward at full weight
+        # (`FitConfig.baseline_elsewhere_weight`; not needed at weight 1): where the network's training steps
+        # give evidence, visited or one move from a visit, and where exactly one task of its member has that
+        # evidence: one witness cannot tell the shared reward from its own goal, so every task counts alike.
         self.evidence: np.ndarray | None = None
         if config.sharing != "none" and config.baseline_elsewhere_weight != 1.0:
             nets, reached = successor_pairs(self.mdps, self.train.tasks, self.train.states)
-            self.evidence = np.zeros(self.n_nets * self.n_states, dtype=bool)
-            self.evidence[self.train.tasks * self.n_states + self.train.states] = True
-            self.evidence[nets * self.n_states + reached] = True
+            seen = np.zeros(self.n_nets * self.n_states, dtype=bool)
+            seen[self.train.tasks * self.n_states + self.train.states] = True
+            seen[nets * self.n_states + reached] = True
+            by_member = seen.reshape(self.n_members, self.n_tasks, self.n_states)
+            one_witness = by_member.sum(axis=1, keepdims=True) == 1  # (K, 1, S)
+            self.evidence = (by_member | one_witness).reshape(-1)
         demo_tasks = np.concatenate([self.train.tasks, self.held.tasks])
         demo_states = np.concatenate([self.train.states, self.held.states])
         self.blocks = [_Block(self, share, demo_tasks, demo_states) for share in shares]

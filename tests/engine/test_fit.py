@@ -301,6 +301,33 @@ def test_the_baseline_learns_less_where_a_task_has_no_evidence_and_the_task_is_p
     assert base_grad_1[~has_evidence].abs().sum() > 0
 
 
+def test_a_state_one_task_alone_saw_teaches_the_baseline_from_every_task() -> None:
+    mdp = small_grid(size=5)
+    starts = {"a": [0], "b": [0], "c": [24]}  # a and b witness the corner at 0, c alone the one at 24
+    demos = {
+        name: soft_demos(mdp, bump_reward(5), starts=np.array(s), length=2, seed=0)
+        for name, s in starts.items()
+    }
+    seen = {
+        name: evidence(mdp, [Trajectory(t.states[: len(t.actions)], t.actions) for t in d]) > 0
+        for name, d in demos.items()
+    }
+    config = FitConfig(baseline_elsewhere_weight=0.1, sharing="l2", holdout_fraction=0.0, ensemble=1)
+    problem = _Problem([task(mdp, d) for d in demos.values()], config)
+    block = problem.blocks[0]
+    full = np.zeros((3, mdp.n_states), dtype=bool)
+    full[block.share_tasks.numpy(), block.base_states[block.share_base.numpy()]] = (
+        block.share_evidence.numpy()
+    )
+    witnesses = np.sum([v.astype(int) for v in seen.values()], axis=0)
+    assert set(witnesses) >= {0, 1, 2}
+    for row, name in zip(full, starts, strict=True):
+        # one witness: every task counts; otherwise the task's own evidence
+        expected = np.where(witnesses == 1, True, seen[name])
+        assert np.array_equal(row, expected), name
+    assert not full[2][(witnesses == 2)].any() and full[0][(witnesses == 2)].all()
+
+
 @pytest.mark.parametrize("sharing", ["none", "huber"])
 def test_chunked_gradient_step_equals_the_direct_one(sharing: str) -> None:
     tasks, _ = terrain_tasks(seed=0, n_tasks=3, n_demos=2)
