@@ -161,6 +161,18 @@ def analysed_samples(
     if options.lowpass_hz is not None:
         from scipy import signal
 
+        duration = int(keep.sum()) / rate
+        if options.lowpass_hz * duration < 1:  # its filter would pass less than one cycle of the recording
+            check(
+                [
+                    Issue(
+                        "/lowpass_hz",
+                        f"must be at least one cycle over the {duration:g} s analysed "
+                        f"({1 / duration:.3g} Hz), got {options.lowpass_hz!r}",
+                    )
+                ]
+            )
+
         sos = signal.butter(4, options.lowpass_hz, fs=rate, output="sos")
         x, y = signal.sosfiltfilt(sos, x), signal.sosfiltfilt(sos, y)
     return rate, x, y

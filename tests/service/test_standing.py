@@ -140,6 +140,7 @@ def test_sway_options_picture_and_spectra(client: TestClient, auth: dict[str, st
     smooth = created(sway(client, auth, rec["id"], lowpass_hz=5), 200)
     assert smooth["descriptors"]["mean_velocity"] < raw["descriptors"]["mean_velocity"]
     assert problem(sway(client, auth, rec["id"], lowpass_hz=80))["pointer"] == "/lowpass_hz"
+    assert problem(sway(client, auth, rec["id"], lowpass_hz=1e-9))["pointer"] == "/lowpass_hz"
     picture = sway(client, auth, rec["id"], format="png")
     assert picture.status_code == 200 and picture.headers["content-type"] == "image/png"
     assert picture.content.startswith(b"\x89PNG")
