@@ -34,11 +34,15 @@ ROOT = Path(__file__).resolve().parents[1]
 
 SHARINGS = ("none", "l2", "huber", "std", "entropy")
 
-ENGINE = "least-departure"
+ENGINE = "baseline-witnesses"
 """The engine's implementation beyond its config, stored with every cached row (here and in ablation.py) so
-no stale row is reused: rename it, and relabel ablation's rows, when the fit changes. ``least-departure`` is
-today's engine (of the candidates within one standard error, the one whose task rewards depart least from the
-baseline, `shrinkage.one_standard_error_choice`); ``sparser-deviations`` is the engine before (the sparsest
+no stale row is reused: rename it, and relabel ablation's rows, when the fit changes. ``baseline-witnesses`` is
+today's engine (the baseline learns a tenth as much from a task's reward where that task has no evidence,
+unless exactly one task saw the state: `FitConfig.baseline_elsewhere_weight` 0.1); ``least-departure`` is the
+engine before (the baseline learned from every task alike on every state), whose ablation rows stay for
+before/after, and whose fits without sharing are carried (``carried_from``: no baseline); before it (of the
+candidates within one standard error, the one whose task rewards depart least from the baseline,
+`shrinkage.one_standard_error_choice`), ``sparser-deviations`` (the sparsest
 candidate, then the largest λ), whose ablation rows stay for before/after, and whose fits without sharing are
 carried (``carried_from``: no baseline, no choice); ``sparse-deviations`` the one before that (no candidate
 sparser than q = 0.95), ``cheap-step`` the one before that (deviations shrunk by λ alone); ``baddbmm-step`` is

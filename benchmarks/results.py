@@ -24,7 +24,7 @@ FAMILIES = HERE / "FAMILIES.md"
 """Another benchmark's page of accuracy per benchmark family; included when it exists."""
 GRID_ENGINE = "baddbmm-step"
 """The engine the stored path-planning grid ran on (`accuracy.ENGINE` documents the names)."""
-BEFORE_ENGINE = "sparser-deviations"
+BEFORE_ENGINE = "least-departure"
 """The engine before today's, whose terrain ablation rows the accuracy section compares with."""
 UNRECORDED = "not recorded"
 
@@ -138,13 +138,12 @@ def accuracy_section() -> list[str]:
     if changes:
         elsewhere = not machines(before) & machines([r for r in rows if "carried_from" not in r])
         out += [
-            f"Against the engine before (`{BEFORE_ENGINE}`, the sparsest candidate within one standard "
-            "error, then the largest λ; its rows stay in the cache): before → today, and the change paired "
-            f"by world ± its standard error: {'; '.join(changes)}."
+            f"Against the engine before (`{BEFORE_ENGINE}`, the baseline learning from every task's reward "
+            "alike on every state; its rows stay in the cache): before → today, and the change paired by world "
+            f"± its standard error: {'; '.join(changes)}."
             + (
                 " The engine before's rows ran on another machine, whose fits differ by up to about ±0.02 "
-                'per world: docs/method.md ("The least departure from the baseline") scores both engines\' '
-                "choices on the same fits."
+                "per world."
                 if elsewhere
                 else ""
             ),
