@@ -68,18 +68,20 @@ class SwayOptions:
     trim_end_s: float = 0.0
     """Seconds dropped at the end."""
 
-    def issues(self, rate_hz: float, pointer: str = "") -> list[Issue]:
-        """Unusable options for a recording sampled at ``rate_hz``."""
+    def issues(self, rate_hz: float, *, duration_s: float, pointer: str = "") -> list[Issue]:
+        """Unusable options for a recording of ``duration_s`` sampled at ``rate_hz``."""
         out = [
             Issue(f"{pointer}/{name}", f"must be a finite number ≥ 0, got {getattr(self, name)!r}")
             for name in ("trim_start_s", "trim_end_s")
             if not (np.isfinite(getattr(self, name)) and getattr(self, name) >= 0)
         ]
-        if self.lowpass_hz is not None and not (0 < self.lowpass_hz < rate_hz / 2):
+        lowest = 1 / duration_s  # one cycle over the recording: below it the filter passes nothing to measure
+        if self.lowpass_hz is not None and not (lowest <= self.lowpass_hz < rate_hz / 2):
             out.append(
                 Issue(
                     f"{pointer}/lowpass_hz",
-                    f"must lie between 0 and the Nyquist frequency {rate_hz / 2:g} Hz, got {self.lowpass_hz!r}",
+                    f"must lie between one cycle over the recording ({lowest:.3g} Hz) and the Nyquist "
+                    f"frequency {rate_hz / 2:g} Hz, got {self.lowpass_hz!r}",
                 )
             )
         return out
@@ -145,7 +147,7 @@ def analysed_samples(
     if len(t) < MIN_SWAY_SAMPLES:
         check([Issue("/samples", f"has {len(t)} samples; sway measures need at least {MIN_SWAY_SAMPLES}")])
     rate = float(1.0 / np.median(np.diff(t)))
-    check(options.issues(rate))
+    check(options.issues(rate, duration_s=len(t) / rate))
     keep = (t >= t[0] + options.trim_start_s - 0.5 / rate) & (t <= t[-1] - options.trim_end_s + 0.5 / rate)
     if keep.sum() < MIN_SWAY_SAMPLES:
         check(
@@ -160,18 +162,6 @@ def analysed_samples(
     x, y = x[keep], y[keep]
     if options.lowpass_hz is not None:
         from scipy import signal
-
-        duration = int(keep.sum()) / rate
-        if options.lowpass_hz * duration < 1:  # its filter would pass less than one cycle of the recording
-            check(
-                [
-                    Issue(
-                        "/lowpass_hz",
-                        f"must be at least one cycle over the {duration:g} s analysed "
-                        f"({1 / duration:.3g} Hz), got {options.lowpass_hz!r}",
-                    )
-                ]
-            )
 
         sos = signal.butter(4, options.lowpass_hz, fs=rate, output="sos")
         x, y = signal.sosfiltfilt(sos, x), signal.sosfiltfilt(sos, y)
