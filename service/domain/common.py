@@ -24,6 +24,8 @@ UploadFormat = Literal["json", "csv", "c3d", "forces"]
 """How demonstrations or a recording came: JSON, CSV, or (recordings) a C3D file or a CSV of plate forces."""
 Integer = Annotated[int, Strict()]
 """A JSON integer: `true`, `1.0` or `"1"` are not taken for 1 (strict, unlike pydantic's default)."""
+Number = Annotated[float, Strict()]
+"""A JSON number (an integer or not): `true` or `"1.5"` are not taken for a number (strict)."""
 Metadata = Annotated[
     dict[str, Any] | None,
     Field(description="Free-form JSON object kept with the resource (e.g. age, condition, session date)."),

@@ -8,7 +8,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
-from service.domain.common import Integer, Name, Resource
+from service.domain.common import Integer, Name, Number, Resource
 from service.store.models.mdps import Mdp
 
 
@@ -26,7 +26,7 @@ class SparseTransitions(BaseModel):
     s: list[Integer]
     a: list[Integer]
     next: list[Integer]
-    p: list[float]
+    p: list[Number]
 
 
 class LayoutIn(BaseModel):
@@ -83,8 +83,8 @@ class ExplicitMdpIn(BaseModel):
     n_actions: Integer | None = Field(
         default=None, description="Number of actions (default: from the arrays)."
     )
-    gamma: float = Field(description="Discount factor in [0, 1).")
-    features: list[list[float]] | None = Field(default=None, description="S×F state features.")
+    gamma: Number = Field(description="Discount factor in [0, 1).")
+    features: list[list[Number]] | None = Field(default=None, description="S×F state features.")
     transitions: Annotated[DeterministicTransitions | SparseTransitions, Field(discriminator="kind")]
     layout: LayoutIn | None = None
 
@@ -100,9 +100,9 @@ class GridMdpIn(BaseModel):
     height: Integer = Field(ge=1)
     moves: Literal[4, 8] | None = Field(default=None, description="4 or 8 neighbours (velocity grids: 8).")
     stay: bool = False
-    slip: float = Field(default=0.0, ge=0.0, le=1.0, description="Probability of a random other action.")
+    slip: Number = Field(default=0.0, ge=0.0, le=1.0, description="Probability of a random other action.")
     velocity: bool = Field(default=False, description="States are (cell, one of 8 directions).")
-    gamma: float = Field(description="Discount factor in [0, 1).")
+    gamma: Number = Field(description="Discount factor in [0, 1).")
 
 
 MdpIn = Annotated[ExplicitMdpIn | GridMdpIn, Field(discriminator="kind")]

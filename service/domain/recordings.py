@@ -13,7 +13,7 @@ from pydantic.json_schema import JsonDict, JsonValue
 
 from metairl_engine.motion.force_plate import MIN_FZ, PlateAxes
 from metairl_engine.motion.recording import Bounds, DiscretiseSettings, SegmentSettings
-from service.domain.common import Resource, UploadFormat
+from service.domain.common import Number, Resource, UploadFormat
 from service.store.models.recordings import Recording as RecordingRow
 
 PLATE_EXAMPLE: JsonDict = {"x_min": -0.2, "x_max": 0.2, "y_min": -0.2, "y_max": 0.2}
@@ -39,9 +39,9 @@ EXAMPLE_GRID_IN: JsonDict = {
 class SampleIn(BaseModel):
     """One COP sample: time, position on the plate and the instruction in force (none if absent or empty)."""
 
-    t: float
-    x: float
-    y: float
+    t: Number
+    x: Number
+    y: Number
     instruction: str | None = Field(
         default=None, description="One of the 8 direction names of docs/motion.md (any case); empty = none."
     )

@@ -8,7 +8,7 @@ from datetime import datetime
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
-from service.domain.common import Metadata, Name, Resource
+from service.domain.common import Metadata, Name, Number, Resource
 from service.store.models.demonstrators import Task, TrueReward
 
 EXAMPLE_IN: JsonDict = {
@@ -87,7 +87,7 @@ class TrueRewardIn(BaseModel):
 
     model_config = ConfigDict(json_schema_extra={"examples": [{"values": [0.0, 0.0, 1.0]}]})
 
-    values: list[float]
+    values: list[Number]
 
 
 class TrueRewardOut(BaseModel):

@@ -1,5 +1,6 @@
 """Contract gaps found by fuzzing, one test each: bodies, names, integers, media types,
-malformed and non-UTF-8 JSON, empty cursors, 405 `Allow`, true rewards that do not fit float32.
+malformed and non-UTF-8 JSON, empty cursors, 405 `Allow`, true rewards that do not fit float32, numbers given as
+booleans or strings.
 (Huge finite correlations: `test_comparisons.py`; CSV rows with extra cells: `test_demonstrations.py`.)"""
 
 from __future__ import annotations
@@ -30,6 +31,17 @@ def test_a_true_reward_that_does_not_fit_float32_is_422(client: TestClient, auth
     )
     assert body["errors"][0]["pointer"] == "/values/1" and "float32" in body["errors"][0]["message"]
     assert client.get(f"/v1/tasks/{task['id']}/true-reward", headers=auth).status_code == 404
+
+
+@pytest.mark.parametrize("value", [True, "1.5"])
+def test_a_number_given_as_a_boolean_or_a_string_is_422_naming_it(
+    client: TestClient, auth: dict[str, str], value: Any
+) -> None:
+    task = make_task(client, auth)
+    reward = client.put(f"/v1/tasks/{task['id']}/true-reward", json={"values": [0, value, 1]}, headers=auth)
+    assert problem(reward, 422)["errors"][0]["pointer"] == "/values/1"
+    grid = {"kind": "grid", "name": "g", "width": 3, "height": 3, "gamma": 0.9, "slip": value}
+    assert problem(client.post("/v1/mdps", json=grid, headers=auth), 422)["errors"][0]["pointer"] == "/slip"
 
 
 @pytest.mark.parametrize("name", ["   ", "\t\n", "\u3000"])
