@@ -231,7 +231,8 @@ def _int_array(raw: object, pointer: str, *, ndim: int) -> tuple[np.ndarray | No
 def _float_array(raw: object, pointer: str, *, ndim: int) -> tuple[np.ndarray | None, list[Issue]]:
     """Coerce to a finite float32 array of ``ndim`` dimensions, or say why not."""
     try:
-        arr = np.asarray(raw, dtype=np.float32)
+        with np.errstate(over="ignore"):  # a number past float32's range becomes inf: refused below
+            arr = np.asarray(raw, dtype=np.float32)
     except (ValueError, TypeError):
         return None, [Issue(pointer, f"must be a rectangular {ndim}-D array of numbers")]
     if arr.ndim != ndim:
@@ -239,7 +240,10 @@ def _float_array(raw: object, pointer: str, *, ndim: int) -> tuple[np.ndarray | 
     bad = np.flatnonzero(~np.isfinite(arr.ravel()))
     if bad.size:
         idx = np.unravel_index(bad[0], arr.shape)
-        return None, [Issue(_at(pointer, idx), "must be a finite number (no NaN or infinity)")]
+        limit = float(np.finfo(np.float32).max)
+        return None, [
+            Issue(_at(pointer, idx), f"must be a finite number within float32's range (|x| ≤ {limit:.4g})")
+        ]
     return arr, []
 
 

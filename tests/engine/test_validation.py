@@ -1,5 +1,7 @@
 """Validation of MDPs, demonstrations and configs: every error names where and what."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -54,6 +56,13 @@ def test_features_with_nan_point_at_the_cell() -> None:
     with pytest.raises(InvalidInput) as exc:
         MDP.build(gamma=0.9, next_state=[[0], [1]], features=[[0.0, 1.0], [np.nan, 0.0]])
     assert pointers(exc) == ["/features/1/0"]
+
+
+def test_a_feature_past_float32s_range_is_refused_as_such_without_a_warning() -> None:
+    with warnings.catch_warnings(), pytest.raises(InvalidInput) as exc:
+        warnings.simplefilter("error")  # numpy's overflow in the cast would otherwise be a RuntimeWarning
+        MDP.build(gamma=0.9, next_state=[[0], [1]], features=[[0.0, 1e39], [0.0, 0.0]])
+    assert pointers(exc) == ["/features/0/1"] and "float32's range" in str(exc.value)
 
 
 def test_layout_must_cover_all_states() -> None:
