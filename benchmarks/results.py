@@ -324,8 +324,8 @@ def uncertainty_section() -> list[str]:
         "learned reward explains little of the truth. The best function of the reward: the error's mean per decile "
         "of each task's standardised learned reward, chosen with the truth on the same states (a bound on any "
         "estimate read off the reward alone), and the decile where it peaks, per world. The refit columns: how far the spread ranks the "
-        "difference between the two fits, and how far the two fits' errors rank alike. The frozen family is "
-        'only reported. docs/method.md, "Uncertainty per state", reads the table.',
+        "difference between the two fits, and how far the two fits' errors rank alike. The frozen families "
+        'are only reported. docs/method.md, "Uncertainty per state", reads the table.',
         "",
         *provenance_lines([stored["provenance"]], [stored["provenance"]["command"]]),
         "",

@@ -2,8 +2,8 @@
 
 One default fit per world of every family: the terrain generators of `ablation.GENERATORS` (8 tasks × 3
 demonstrations) and the published families of `benchmarks.families.FAMILIES` at their smaller demonstration
-count (the multi-task forms: 8 goal tasks × 3; objectworld single-task: 16 paths of 8 steps), the frozen one
-only reported. For each task reward, the learned reward is put on the true reward's scale by a least-squares
+count (the multi-task forms: 8 goal tasks × 3; objectworld single-task: 16 paths of 8 steps), the frozen
+ones only reported. For each task reward, the learned reward is put on the true reward's scale by a least-squares
 affine fit (its level and scale are not identified) and its absolute error taken per state; the Spearman
 correlation of an estimate with that error is taken over every task's states but its goal, pooled. Estimates:
 the spread (`FitResult.reward_spread`), and the graph distance (hops, `demo_distance`) to the nearest state
@@ -59,8 +59,9 @@ ROWS = (
     "multi-binaryworld",
     "objectworld",
     "multi-objectworld-discrete (frozen)",
+    "multi-gridworld (frozen)",
 )
-"""The table's families, in order: terrain generators, then the published families (the frozen one last)."""
+"""The table's families, in order: terrain generators, then the published families (the frozen ones last)."""
 
 REFIT_SEED = 1
 """Seed of the second default fit per world, whose difference from the first the spread should predict."""
