@@ -14,6 +14,9 @@ import numpy as np
 
 from metairl_engine.errors import Issue, check
 
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+"""The largest finite float32: MDP arrays and rewards are stored as float32, so no finite value may exceed it."""
+
 MAX_ISSUES = 20
 """At most this many issues are reported for one input; the first ones are the useful ones."""
 
@@ -240,9 +243,10 @@ def _float_array(raw: object, pointer: str, *, ndim: int) -> tuple[np.ndarray | 
     bad = np.flatnonzero(~np.isfinite(arr.ravel()))
     if bad.size:
         idx = np.unravel_index(bad[0], arr.shape)
-        limit = float(np.finfo(np.float32).max)
         return None, [
-            Issue(_at(pointer, idx), f"must be a finite number within float32's range (|x| ≤ {limit:.4g})")
+            Issue(
+                _at(pointer, idx), f"must be a finite number within float32's range (|x| ≤ {FLOAT32_MAX:.4g})"
+            )
         ]
     return arr, []
 

@@ -18,6 +18,7 @@ from typing import Annotated, Any, get_args, get_origin, get_type_hints
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictInt, create_model
 
 from metairl_engine.config import FitConfig
+from service.domain.common import Number
 
 
 @cache
@@ -47,7 +48,7 @@ def http_type(hint: Any) -> Any:
     if hint is int:
         return StrictInt
     if hint is float:
-        return Annotated[float, Field(strict=True, allow_inf_nan=False)]
+        return Annotated[Number, Field(allow_inf_nan=False)]
     if get_origin(hint) is tuple:
         return tuple[StrictInt, ...]
     args = get_args(hint)

@@ -8,6 +8,7 @@ import numpy as np
 from sqlalchemy import delete, func, select
 from sqlalchemy.orm import Session
 
+from metairl_engine.mdp import FLOAT32_MAX
 from service.domain.tasks import TaskTotals
 from service.problems import Unprocessable
 from service.store.blobs import put_array
@@ -17,9 +18,6 @@ from service.store.models.demonstrators import Demonstration, Demonstrator, Task
 from service.store.models.mdps import Mdp
 from service.store.owned import get_owned
 from service.store.paging import PageParams, RowPage, paginate
-
-FLOAT32_MAX = float(np.finfo(np.float32).max)
-"""The largest magnitude a stored (float32) reward value can have."""
 
 
 def create_task(
