@@ -127,6 +127,16 @@ class FitConfig:
     shrink towards) and a hold-out; the choice is `FitResult.shrinkage` and `FitResult.sparsity`. False:
     the task networks' rewards as learned."""
 
+    stay_at_ends: bool = True
+    """A demonstration that ended by choice (shorter than its task's longest, or ending where another of its
+    task's demonstrations ends: `demos.ended_by_choice`) counts one more step, the MDP's stay action at its
+    final state (`planning.stay_actions`; none there: nothing added). The likelihood of the demonstrated
+    actions alone discards where a demonstration stops, the plainest evidence of its goal: a task reward
+    could then peak beside the goal, which at γ 0.99 costs the task's policy its goal (docs/method.md,
+    "Where a demonstration stops"). Demonstrations cut at one length (a step limit, a recording's end) are
+    left as they are. The ``maxent`` method counts the final state's visit already. False: the steps as
+    given."""
+
     tabular_inputs: TabularInputs = "coordinates"
     """What the networks see of each state when the MDP has no state features. ``coordinates``: the state's
     position, from the MDP's layout when it has one (x, y in [0, 1], plus a one-hot of its channel), else

@@ -95,3 +95,36 @@ def state_action_pairs(trajectories: Sequence[Trajectory]) -> tuple[np.ndarray, 
     states = np.concatenate([tr.states[: len(tr.actions)] for tr in trajectories])
     actions = np.concatenate([tr.actions for tr in trajectories])
     return states.astype(np.int64), actions.astype(np.int64)
+
+
+def ended_by_choice(trajectories: Sequence[Trajectory]) -> np.ndarray:
+    """Which of a task's demonstrations (with their final state) ended where the demonstrator chose to stop:
+    where their lengths differ, those shorter than the task's longest and those ending where another of them
+    ends. (N,) bool.
+
+    A step limit cuts every demonstration at one length, so where all are equally long none is known to have
+    stopped by choice, even where two happen to end at one state; otherwise a demonstration that stops
+    sooner than the limit, or at a state another also stops at, stopped because it was done."""
+    lengths = np.array([len(t.actions) for t in trajectories])
+    if lengths.min() == lengths.max():
+        return np.zeros(len(trajectories), dtype=bool)
+    has_end = np.array([len(t.states) == len(t.actions) + 1 for t in trajectories])
+    ends = np.array([int(t.states[-1]) if h else -1 for t, h in zip(trajectories, has_end, strict=True)])
+    _, inverse, counts = np.unique(ends, return_inverse=True, return_counts=True)
+    shared_end = counts[inverse] >= 2
+    return has_end & ((lengths < lengths.max()) | shared_end)
+
+
+def with_stays_at_ends(trajectories: Sequence[Trajectory], stay: np.ndarray) -> list[Trajectory]:
+    """The task's demonstrations, each that `ended_by_choice` one step longer: the stay action at its final
+    state (``stay``: `planning.stay_actions`, -1 where there is none: nothing added).
+
+    The likelihood of the demonstrated actions alone discards where a demonstration ends, the plainest
+    evidence of its goal; a demonstrator that stopped there by choice would stay there."""
+    out = []
+    for t, stopped in zip(trajectories, ended_by_choice(trajectories), strict=True):
+        action = int(stay[t.states[-1]]) if stopped else -1
+        if action >= 0:
+            t = Trajectory(np.append(t.states, t.states[-1]), np.append(t.actions, action))
+        out.append(t)
+    return out

@@ -30,13 +30,13 @@ import torch.nn.functional as F
 from metairl_engine.backups import QRows, backup, successor_pairs
 from metairl_engine.config import FitConfig, baseline_column_issues, ensemble_size, sharing_block_count
 from metairl_engine.coordinates import COORDINATE_OCTAVES, state_coordinates
-from metairl_engine.demos import validate_trajectories
+from metairl_engine.demos import validate_trajectories, with_stays_at_ends
 from metairl_engine.errors import Cancelled, InvalidInput, Issue, check
 from metairl_engine.holdout import Steps, repeats_its_decisions, split_steps
 from metairl_engine.mdp import MDP
 from metairl_engine.memory import EVAL_CHUNK, TRAIN_CHUNK, retained_heap
 from metairl_engine.networks import StackedMLP, fourier_features
-from metairl_engine.planning import transition_matrix
+from metairl_engine.planning import stay_actions, transition_matrix
 from metairl_engine.results import FitResult, Progress, TaskData
 from metairl_engine.sharing import segment_sum, sharing_loss
 from metairl_engine.shrinkage import BUDGET as SHRINK_BUDGET
@@ -212,7 +212,10 @@ class _Problem:
             else _encode(features if base_columns is None else features[:, base_columns], config)
         )
         demos = [t.trajectories for t in tasks]
-        distinct = repeats_its_decisions(demos)
+        distinct = repeats_its_decisions(demos)  # the demonstrator's own decisions, before any stay is added
+        if config.stay_at_ends:
+            stays = {id(m): stay_actions(m) for m in {id(t.mdp): t.mdp for t in tasks}.values()}
+            demos = [with_stays_at_ends(t.trajectories, stays[id(t.mdp)]) for t in tasks]
         folds = [
             split_steps(demos, fraction=config.holdout_fraction, seed=config.seed, fold=k, distinct=distinct)
             for k in range(self.n_members)

@@ -122,3 +122,21 @@ def policy_evaluation(
             return np.asarray(new_v)
         v = new_v
     return np.asarray(v)
+
+
+def stay_actions(mdp: MDP) -> np.ndarray:
+    """Per state, the action that keeps the agent there: of the actions whose most likely next state is the
+    state itself, the one most likely to; -1 where no action does. Shape (S,) int64.
+
+    A stay action (objectworld's fifth, a move into a wall) is how an MDP without terminal states lets a
+    demonstrator remain where it stopped (`demos.with_stays_at_ends`)."""
+    p = transition_matrix(mdp)
+    n_states, n_actions = mdp.n_states, mdp.n_actions
+    rows = np.repeat(np.arange(p.shape[0]), np.diff(p.indptr))
+    row_max = np.zeros(p.shape[0])
+    np.maximum.at(row_max, rows, p.data)
+    stays = p.indices == rows // n_actions
+    stay_chance = np.zeros(p.shape[0])
+    np.add.at(stay_chance, rows[stays], p.data[stays])
+    chance = np.where(stay_chance >= row_max, stay_chance, 0.0).reshape(n_states, n_actions)
+    return np.where(chance.max(axis=1) > 0, chance.argmax(axis=1), -1).astype(np.int64)

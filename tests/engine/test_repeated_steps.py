@@ -58,7 +58,7 @@ def test_fits_count_an_optimal_demonstrators_repeated_steps_once_and_a_boltzmann
         sims = goal_tasks(world, n_tasks=3, n_demos=4, seed=0, goal_bonus=10.0, rationality=rationality)
         tasks = [TaskData(world.mdp, s.trajectories, s.name) for s in sims]
         assert repeats_its_decisions([t.trajectories for t in tasks]) is distinct
-        problem = _Problem(tasks, FitConfig(ensemble=1))
+        problem = _Problem(tasks, FitConfig(ensemble=1, stay_at_ends=False))  # the demonstrator's own steps
         steps = [np.stack(state_action_pairs(t.trajectories)) for t in tasks]
         expected = sum(np.unique(s, axis=1).shape[1] if distinct else s.shape[1] for s in steps)
         assert len(problem.train) + len(problem.held) == expected

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import torch
 
@@ -79,8 +81,11 @@ def test_block_sharing_losses_weighted_by_block_size_add_up_to_the_all_states_lo
 
 def test_a_fit_on_sharing_blocks_learns_about_the_rewards_of_a_fit_on_all_states() -> None:
     tasks, sims = terrain_tasks(seed=0, n_tasks=4, n_demos=3)
-    whole = fit(tasks, FitConfig(sharing_blocks=1, max_steps=300))
-    blocked = fit(tasks, FitConfig(sharing_blocks=4, max_steps=300))
+    # the blocks against every state on the demonstrator's own steps (the stays added where demonstrations stop
+    # move one world's accuracy by ±0.2 either way: `benchmarks.ablation` measures them over ten)
+    config = FitConfig(max_steps=300, stay_at_ends=False)
+    whole = fit(tasks, replace(config, sharing_blocks=1))
+    blocked = fit(tasks, replace(config, sharing_blocks=4))
     for i, sim in enumerate(sims):
         not_goal = np.arange(len(sim.true_reward)) != sim.goal
         assert pearson(blocked.rewards[i], whole.rewards[i], mask=not_goal) > 0.8
