@@ -34,12 +34,14 @@ ROOT = Path(__file__).resolve().parents[1]
 
 SHARINGS = ("none", "l2", "huber", "std", "entropy")
 
-ENGINE = "baseline-witnesses"
+ENGINE = "stays-at-ends"
 """The engine's implementation beyond its config, stored with every cached row (here and in ablation.py) so
-no stale row is reused: rename it, and relabel ablation's rows, when the fit changes. ``baseline-witnesses`` is
-today's engine (the baseline learns a tenth as much from a task's reward where that task has no evidence,
-unless exactly one task saw the state: `FitConfig.baseline_elsewhere_weight` 0.1); ``least-departure`` is the
-engine before (the baseline learned from every task alike on every state), whose ablation rows stay for
+no stale row is reused: rename it, and relabel ablation's rows, when the fit changes. ``stays-at-ends`` is
+today's engine (a demonstration that stopped by choice counts one more step, the stay action at its end:
+`FitConfig.stay_at_ends`); ``baseline-witnesses`` the engine before (the baseline learns a tenth as much
+from a task's reward where that task has no evidence, unless exactly one task saw the state:
+`FitConfig.baseline_elsewhere_weight` 0.1), whose ablation rows stay for before/after; ``least-departure``
+the engine before that (the baseline learned from every task alike on every state), whose ablation rows stay for
 before/after, and whose fits without sharing are carried (``carried_from``: no baseline); before it (of the
 candidates within one standard error, the one whose task rewards depart least from the baseline,
 `shrinkage.one_standard_error_choice`), ``sparser-deviations`` (the sparsest
