@@ -128,8 +128,8 @@ class FitConfig:
     the task networks' rewards as learned."""
 
     stay_at_ends: bool = True
-    """A demonstration that ended by choice (shorter than its task's longest, or ending where another of its
-    task's demonstrations ends: `demos.ended_by_choice`) counts one more step, the MDP's stay action at its
+    """A demonstration that ended by choice (where its task's demonstrations differ in length: shorter than the
+    longest, or ending where another ends; `demos.ended_by_choice`) counts one more step, the MDP's stay action at its
     final state (`planning.stay_actions`; none there: nothing added). The likelihood of the demonstrated
     actions alone discards where a demonstration stops, the plainest evidence of its goal: a task reward
     could then peak beside the goal, which at γ 0.99 costs the task's policy its goal (docs/method.md,
