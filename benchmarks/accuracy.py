@@ -34,11 +34,15 @@ ROOT = Path(__file__).resolve().parents[1]
 
 SHARINGS = ("none", "l2", "huber", "std", "entropy")
 
-ENGINE = "stays-at-ends"
+ENGINE = "neighbours-half"
 """The engine's implementation beyond its config, stored with every cached row (here and in ablation.py) so
-no stale row is reused: rename it, and relabel ablation's rows, when the fit changes. ``stays-at-ends`` is
-today's engine (a demonstration that stopped by choice counts one more step, the stay action at its end:
-`FitConfig.stay_at_ends`); ``baseline-witnesses`` the engine before (the baseline learns a tenth as much
+no stale row is reused: rename it, and relabel ablation's rows, when the fit changes. ``neighbours-half`` is
+today's engine (one move from a task's visits the baseline learns from its reward at half a visit's weight,
+and the single-witness exception counts the tasks that visit a state: `FitConfig.baseline_elsewhere_weight`);
+``stays-at-ends`` the engine before (a demonstration that stopped by choice counts one more step, the stay
+action at its end: `FitConfig.stay_at_ends`), whose ablation rows stay for before/after, and whose fits
+without sharing are carried (``carried_from``: no baseline); ``baseline-witnesses`` the one before that (the
+baseline learns a tenth as much
 from a task's reward where that task has no evidence, unless exactly one task saw the state:
 `FitConfig.baseline_elsewhere_weight` 0.1), whose ablation rows stay for before/after; ``least-departure``
 the engine before that (the baseline learned from every task alike on every state), whose ablation rows stay for

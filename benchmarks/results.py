@@ -24,7 +24,7 @@ FAMILIES = HERE / "FAMILIES.md"
 """Another benchmark's page of accuracy per benchmark family; included when it exists."""
 GRID_ENGINE = "baddbmm-step"
 """The engine the stored path-planning grid ran on (`accuracy.ENGINE` documents the names)."""
-BEFORE_ENGINE = "baseline-witnesses"
+BEFORE_ENGINE = "stays-at-ends"
 """The engine before today's, whose terrain ablation rows the accuracy section compares with."""
 UNRECORDED = "not recorded"
 
@@ -138,8 +138,9 @@ def accuracy_section() -> list[str]:
     if changes:
         elsewhere = not machines(before) & machines([r for r in rows if "carried_from" not in r])
         out += [
-            f"Against the engine before (`{BEFORE_ENGINE}`, where a demonstration stopped counted nothing; its "
-            "rows stay in the cache): before → today, and the change paired by world "
+            f"Against the engine before (`{BEFORE_ENGINE}`, where the baseline learned from a task's reward one move "
+            "from its visits as on a visit; its rows stay in the cache): before → today, and the change paired "
+            "by world "
             f"± its standard error: {'; '.join(changes)}."
             + (
                 " The engine before's rows ran on another machine, whose fits differ by up to about ±0.02 "

@@ -87,13 +87,14 @@ class FitConfig:
 
     baseline_elsewhere_weight: float = field(default=0.1, metadata=bounds(ge=0, le=1))
     """How much the baseline network learns from a task's reward on the states where that task's training steps
-    give no evidence (neither visited nor one move from a visit: `evidence.py`), relative to the states where
-    they do. Off its evidence a task reward is what its network extrapolates; below 1 the baseline follows
-    the tasks that saw a state more than those that did not, while every task is still pulled toward the
-    baseline on every state. A state exactly one task saw counts every task at 1: a single witness cannot
-    tell the shared reward from its own goal. 1: every state alike, as the paper has it; 0.1 (default): with
-    eight tasks, a state one of two witnesses saw outweighs the six extrapolations there (docs/method.md,
-    "Where the baseline learns from")."""
+    give no evidence (neither visited nor one move from a visit: `evidence.py`), relative to the states they
+    visit. Off its evidence a task reward is what its network extrapolates; below 1 the baseline follows the
+    tasks that saw a state more than those that did not, while every task is still pulled toward the baseline
+    on every state. One move from a visit the baseline learns at ½ (or this weight, if larger): the reward
+    there rests on values the demonstrated choices compare only in part. A state exactly one task visited
+    counts every task at 1: a single witness cannot tell the shared reward from its own goal. 1: every state
+    alike, as the paper has it; 0.1 (default): with eight tasks, a state one of two witnesses visited outweighs
+    the six extrapolations there (docs/method.md, "Where the baseline learns from")."""
 
     task_coordinates: bool = True
     """The task (VR) networks also see each state's coordinates (`coordinates.state_coordinates`: from the

@@ -32,6 +32,7 @@ from metairl_engine.config import FitConfig, baseline_column_issues, ensemble_si
 from metairl_engine.coordinates import COORDINATE_OCTAVES, state_coordinates
 from metairl_engine.demos import validate_trajectories, with_stays_at_ends
 from metairl_engine.errors import Cancelled, InvalidInput, Issue, check
+from metairl_engine.evidence import NEXT_TO_VISITED
 from metairl_engine.holdout import Steps, repeats_its_decisions, split_steps
 from metairl_engine.mdp import MDP
 from metairl_engine.memory import EVAL_CHUNK, TRAIN_CHUNK, retained_heap
@@ -244,19 +245,26 @@ class _Problem:
         self.train_actions = torch.from_numpy(self.train.actions)
         self.train_tasks = torch.from_numpy(self.train.tasks)
         self.held_actions = torch.from_numpy(self.held.actions)
-        # Per (network, state): where the baseline learns from the network's reward at full weight
-        # (`FitConfig.baseline_elsewhere_weight`; not needed at weight 1): where the network's training steps
-        # give evidence, visited or one move from a visit, and where exactly one task of its member has that
-        # evidence: one witness cannot tell the shared reward from its own goal, so every task counts alike.
-        self.evidence: np.ndarray | None = None
+        # Per (network, state): how much the baseline learns from the network's reward there
+        # (`FitConfig.baseline_elsewhere_weight` ω; not needed at ω = 1, where every row counts 1). 1 where the
+        # network's training steps visit the state, and where exactly one task of its member visits it: one
+        # witness cannot tell the shared reward from its own goal, so every task counts alike. NEXT_TO_VISITED
+        # (½) where its steps only move next to the state: r = f − γV there rests on f at successors that the
+        # demonstrated choices compare only in part. ω elsewhere.
+        self.baseline_weight: np.ndarray | None = None
         if config.sharing != "none" and config.baseline_elsewhere_weight != 1.0:
+            trained = np.zeros(self.n_nets * self.n_states, dtype=bool)
+            trained[self.train.tasks * self.n_states + self.train.states] = True
             nets, reached = successor_pairs(self.mdps, self.train.tasks, self.train.states)
-            seen = np.zeros(self.n_nets * self.n_states, dtype=bool)
-            seen[self.train.tasks * self.n_states + self.train.states] = True
-            seen[nets * self.n_states + reached] = True
-            by_member = seen.reshape(self.n_members, self.n_tasks, self.n_states)
+            near = np.zeros_like(trained)
+            near[nets * self.n_states + reached] = True
+            by_member = trained.reshape(self.n_members, self.n_tasks, self.n_states)
             one_witness = by_member.sum(axis=1, keepdims=True) == 1  # (K, 1, S)
-            self.evidence = (by_member | one_witness).reshape(-1)
+            full = (by_member | one_witness).reshape(-1)
+            elsewhere = config.baseline_elsewhere_weight
+            neighbour = max(NEXT_TO_VISITED, elsewhere)
+            weight = np.where(full, 1.0, np.where(near, neighbour, elsewhere))
+            self.baseline_weight = weight.astype(np.float32)
         demo_tasks = np.concatenate([self.train.tasks, self.held.tasks])
         demo_states = np.concatenate([self.train.states, self.held.states])
         self.blocks = [_Block(self, share, demo_tasks, demo_states) for share in shares]
@@ -310,6 +318,7 @@ class _Block:
 
         self.q_train, self.q_held = rows(problem.train), rows(problem.held)
         self.share_tasks = torch.from_numpy(share.tasks)
+        self.share_weight: torch.Tensor | None = None  # the baseline's weight per sharing row (`_Problem`)
         if len(share):
             self.q_share = rows(share)
             self.share_f = torch.from_numpy(share.tasks * n_u + columns[share.tasks, share.states])
@@ -318,9 +327,9 @@ class _Block:
             member = share.tasks // problem.n_tasks  # row k of the baseline network's (K, B) outputs
             self.share_base = torch.from_numpy(member * len(self.base_states) + base_index.astype(np.int64))
             self.inputs_base = problem.inputs(self.base_states, base=True)
-            if problem.evidence is not None:  # which rows the network's training steps give evidence on
-                self.share_evidence = torch.from_numpy(
-                    problem.evidence[share.tasks * problem.n_states + share.states]
+            if problem.baseline_weight is not None:
+                self.share_weight = torch.from_numpy(
+                    problem.baseline_weight[share.tasks * problem.n_states + share.states]
                 )
         else:
             self.base_states = np.zeros(0, dtype=np.int64)
@@ -580,9 +589,9 @@ def objective(
         v = backup(block.q_share(f), kind=config.backup, bgi_k=config.bgi_k)  # V_i(s)       eq. 7
         r = f.reshape(-1).index_select(0, block.share_f) - block.share_gamma * v  # r_i      eq. 8
         base = r_b.reshape(-1).index_select(0, block.share_base)
-        weight = config.baseline_elsewhere_weight
-        if weight != 1.0:  # the same values; the baseline's gradient from rows without evidence times weight
-            base = torch.where(block.share_evidence, base, weight * base + (1.0 - weight) * base.detach())
+        if block.share_weight is not None:  # same values; r_b's gradient per row times its weight
+            weight = block.share_weight.to(base.dtype)
+            base = weight * base + (1.0 - weight) * base.detach()
         diff = r - base
         shared = sharing_loss(diff, block.share_tasks, n_tasks=n_tasks, kind=config.sharing)
     loss = (irl + config.sharing_weight * shared).mean()  # eq. 1, averaged over tasks

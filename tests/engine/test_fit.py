@@ -9,7 +9,7 @@ import torch
 from metairl_engine import MDP, FitConfig, InvalidInput, Trajectory
 from metairl_engine.backups import QRows, successors
 from metairl_engine.errors import Cancelled
-from metairl_engine.evidence import evidence
+from metairl_engine.evidence import NEXT_TO_VISITED, VISITED, evidence
 from metairl_engine.fit import CONVERGED_STEPS, HeldOutStopper, _Problem, fit, gradient_step, objective
 from metairl_engine.grids import grid_mdp
 from metairl_engine.metrics import pearson
@@ -53,7 +53,15 @@ def test_loss_gradient_matches_finite_differences_in_float64(sharing: str) -> No
     mdp = small_grid(size=3)
     reward = bump_reward(3)
     tasks = [task(mdp, soft_demos(mdp, reward, starts=np.array([0, 4]), length=3, seed=s)) for s in (0, 1)]
-    config = FitConfig(sharing=sharing, backup="logsumexp", hidden=(4,), holdout_fraction=0.0, ensemble=1)  # type: ignore[arg-type]
+    # ω = 1: the loss's own gradient (the baseline's row weights scale its gradient on purpose; tested apart)
+    config = FitConfig(
+        sharing=sharing,  # type: ignore[arg-type]
+        backup="logsumexp",
+        hidden=(4,),
+        holdout_fraction=0.0,
+        ensemble=1,
+        baseline_elsewhere_weight=1.0,
+    )
     problem = _Problem(tasks, config)
     block = problem.blocks[0]
     block.inputs_u, block.inputs_base = block.inputs_u.double(), block.inputs_base.double()
@@ -273,11 +281,12 @@ def test_bad_trajectories_are_rejected_with_task_and_step() -> None:
     assert [i.pointer for i in exc.value.issues] == ["/tasks/1/trajectories/0/states/1"]
 
 
-def test_the_baseline_learns_less_where_a_task_has_no_evidence_and_the_task_is_pulled_alike() -> None:
+def test_the_baseline_learns_by_the_evidence_at_each_state_and_the_task_is_pulled_alike() -> None:
     mdp = small_grid(size=5)
     demos = soft_demos(mdp, bump_reward(5), starts=np.array([0, 24]), length=2, seed=0)
     acted = [Trajectory(t.states[: len(t.actions)], t.actions) for t in demos]  # the steps the fit trains on
-    has_evidence = torch.from_numpy(evidence(mdp, acted) > 0)
+    level = torch.from_numpy(evidence(mdp, acted))  # 1 visited, ½ one move from a visit, 0 elsewhere
+    assert {float(v) for v in level.unique()} == {VISITED, NEXT_TO_VISITED, 0.0}
     runs = []
     for weight in (1.0, 0.25):
         config = FitConfig(baseline_elsewhere_weight=weight, sharing="l2", holdout_fraction=0.0, ensemble=1)
@@ -294,38 +303,39 @@ def test_the_baseline_learns_less_where_a_task_has_no_evidence_and_the_task_is_p
         assert f.grad is not None and r_b.grad is not None
         runs.append((loss.detach(), f.grad, r_b.grad[0, np.argsort(block.base_states)]))  # by state
     (loss_1, task_grad_1, base_grad_1), (loss_w, task_grad_w, base_grad_w) = runs
-    assert 0 < int(has_evidence.sum()) < mdp.n_states
     assert torch.equal(loss_1, loss_w) and torch.allclose(task_grad_1, task_grad_w)
-    assert torch.allclose(base_grad_w[has_evidence], base_grad_1[has_evidence])
-    assert torch.allclose(base_grad_w[~has_evidence], 0.25 * base_grad_1[~has_evidence])
-    assert base_grad_1[~has_evidence].abs().sum() > 0
+    # a visit counts 1, a neighbour of one ½, elsewhere ω = 0.25 (one task: every visit has one witness)
+    expected = torch.where(level > 0, level, 0.25).to(base_grad_1.dtype)
+    assert torch.allclose(base_grad_w, expected * base_grad_1)
+    assert base_grad_1[level == 0].abs().sum() > 0 and base_grad_1[level == NEXT_TO_VISITED].abs().sum() > 0
 
 
-def test_a_state_one_task_alone_saw_teaches_the_baseline_from_every_task() -> None:
+def test_a_state_one_task_alone_visited_teaches_the_baseline_from_every_task() -> None:
     mdp = small_grid(size=5)
-    starts = {"a": [0], "b": [0], "c": [24]}  # a and b witness the corner at 0, c alone the one at 24
+    starts = {"a": [0], "b": [0], "c": [24]}  # a and b visit the corner at 0, c alone the one at 24
     demos = {
         name: soft_demos(mdp, bump_reward(5), starts=np.array(s), length=2, seed=0)
         for name, s in starts.items()
     }
-    seen = {
-        name: evidence(mdp, [Trajectory(t.states[: len(t.actions)], t.actions) for t in d]) > 0
+    level = {
+        name: evidence(mdp, [Trajectory(t.states[: len(t.actions)], t.actions) for t in d])
         for name, d in demos.items()
     }
     config = FitConfig(baseline_elsewhere_weight=0.1, sharing="l2", holdout_fraction=0.0, ensemble=1)
     problem = _Problem([task(mdp, d) for d in demos.values()], config)
     block = problem.blocks[0]
-    full = np.zeros((3, mdp.n_states), dtype=bool)
-    full[block.share_tasks.numpy(), block.base_states[block.share_base.numpy()]] = (
-        block.share_evidence.numpy()
+    assert block.share_weight is not None
+    weight = np.zeros((3, mdp.n_states), dtype=np.float32)
+    weight[block.share_tasks.numpy(), block.base_states[block.share_base.numpy()]] = (
+        block.share_weight.numpy()
     )
-    witnesses = np.sum([v.astype(int) for v in seen.values()], axis=0)
+    witnesses = np.sum([(v == VISITED).astype(int) for v in level.values()], axis=0)
     assert set(witnesses) >= {0, 1, 2}
-    for row, name in zip(full, starts, strict=True):
-        # one witness: every task counts; otherwise the task's own evidence
-        expected = np.where(witnesses == 1, True, seen[name])
-        assert np.array_equal(row, expected), name
-    assert not full[2][(witnesses == 2)].any() and full[0][(witnesses == 2)].all()
+    for row, name in zip(weight, starts, strict=True):
+        # one witness: every task counts 1; otherwise the task's own evidence: 1 visited, ½ next to a visit, else ω
+        expected = np.where(witnesses == 1, 1.0, np.where(level[name] > 0, level[name], 0.1))
+        assert np.allclose(row, expected), name
+    assert np.allclose(weight[2][witnesses == 2], 0.1) and np.allclose(weight[0][witnesses == 2], 1.0)
 
 
 @pytest.mark.parametrize("sharing", ["none", "huber"])
