@@ -854,9 +854,10 @@ NEIGHBOURS_FINDINGS = """### A neighbour is half a visit (engine `neighbours-hal
   (worlds 0 … 5; −0.152 ± 0.029 on worlds 6 … 17) and −0.158 ± 0.036 at 10, still +0.241 ± 0.020 over none
   on its 18 worlds (before +0.380) with its EVD÷random under none's on every world; single-task −0.090 ±
   0.034 and −0.072 ± 0.032 at 64 and 128 demonstrations, where the default falls under none (−0.045, −0.003).
-  Not diagnosed on it (it stays frozen); a candidate cause: its world reward, U⁸ on 4×4 macro cells, is
-  small beside the goal bonus of 10, and one move from a goal's visits, where one task alone has evidence,
-  the baseline no longer hears every task alike but that task at ½ and the others at ω. Single-task objectworld (a
+  Its tuning twin (`make_gridworld(seed=40900 + i, scale=1.0)`, the same goal tasks, worlds 0 … 3, one-off
+  fits after the refit; the frozen worlds stay unexamined) loses as much, 0.433 → 0.247, and takes the cost
+  apart: the witnesses counted on visits with a neighbour still at 1 give 0.400, the neighbour at ½ with
+  the witnesses counted on moves as well 0.215. The half weight itself is what the gridworld pays for. Single-task objectworld (a
   tuning family, every visit its own witness) keeps its correlation (−0.012 / +0.041 / +0.010 / +0.004 at 4 /
   16 / 64 / 128) but its EVD÷random rises at 16 … 128 (0.174 → 0.204, 0.082 → 0.114, 0.060 → 0.081);
   single-task binaryworld +0.004 / −0.019 / +0.010 / +0.024, its EVD÷random lower or equal.
