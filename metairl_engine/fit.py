@@ -249,8 +249,8 @@ class _Problem:
         # (`FitConfig.baseline_elsewhere_weight` ω; not needed at ω = 1, where every row counts 1). 1 where the
         # network's training steps visit the state, and where exactly one task of its member visits it: one
         # witness cannot tell the shared reward from its own goal, so every task counts alike. NEXT_TO_VISITED
-        # (½) where its steps only move next to the state: r = f − γV there rests on f at successors that the
-        # demonstrated choices compare only in part. ω elsewhere.
+        # (½, or ω if larger) where its steps only move next to the state: r = f − γV there rests on f at
+        # successors that the demonstrated choices compare only in part. ω elsewhere.
         self.baseline_weight: np.ndarray | None = None
         if config.sharing != "none" and config.baseline_elsewhere_weight != 1.0:
             trained = np.zeros(self.n_nets * self.n_states, dtype=bool)
