@@ -157,8 +157,9 @@ def in_units(world: RewardWorld, *, per_cell: float = 1.0, origin: float = 0.0) 
     return replace(world, mdp=replace(world.mdp, features=features))
 
 
-def without_features(world: RewardWorld) -> RewardWorld:
-    """``world`` uploaded without features: the networks see where a state is and nothing else."""
+def layout_only(world: RewardWorld) -> RewardWorld:
+    """``world`` uploaded with its layout but without features: the networks see where a state is and nothing
+    else (`benchmarks.ablation.without_features` drops the layout too)."""
     return replace(world, mdp=replace(world.mdp, features=None))
 
 
@@ -291,7 +292,7 @@ FAMILIES: dict[str, Family] = {
         n_tasks=2,
     ),
     "multi-objectworld-no-features (frozen)": Family(
-        lambda i: without_features(make_objectworld(seed=FROZEN_SEED + 1200 + i)[0]),
+        lambda i: layout_only(make_objectworld(seed=FROZEN_SEED + 1200 + i)[0]),
         multi=True,
         demos=(3, 10),
         frozen=True,
