@@ -95,6 +95,8 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "one-hot": {"tabular_inputs": "one_hot"},
     # The baseline learning from every task's reward alike on every state, as the paper has it.
     "elsewhere1": {"baseline_elsewhere_weight": 1.0},
+    # without features: the networks on coordinates alone, never the tabular solver
+    "networks-only": {"tabular_choice": False},
 }
 """Named FitConfig overrides; ``default`` is whatever FitConfig() is at the time of the run."""
 

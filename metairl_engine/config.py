@@ -146,6 +146,17 @@ class FitConfig:
     paper's tabular network), where a state no demonstration reaches gets its reward from the sharing loss
     alone."""
 
+    tabular_choice: bool = True
+    """With an MDP without state features, sharing and a hold-out: whether the data may choose the tabular
+    ``maxent`` solver over the networks. Coordinates assume the reward is smooth in the place, as a terrain's
+    cost is; a reward of small patches (objectworld's) it is not, and there the networks extrapolate a wrong
+    trend over every state no demonstration reaches, while the solver leaves them at 0. Both are fitted on
+    two thirds of each task's demonstrations (`holdout.split_demonstrations`), and the solver is kept only if
+    its policies predict the held-out third better by more than one standard error, counted per held-out
+    demonstration (`holdout.beats_by_standard_error`); then it is refitted on every demonstration. The
+    choice is the result's ``config`` (``method``, or this set to False), so refitting with it gives the same
+    result. Costs two extra fits on such MDPs, none elsewhere (docs/method.md, "MDPs without features")."""
+
     backup: Backup = "max"
     """Bellman backup V(s) from Q(s, ·): max (paper eq. 7), logsumexp (MaxEnt) or BGI's (1/k)·logsumexp(k·Q)."""
 
@@ -261,6 +272,19 @@ ENSEMBLE_BUDGET = 2**15
 
 MAX_AUTO_MEMBERS = 4
 """The most members the automatic ensemble uses."""
+
+
+def chooses_tabular_method(config: FitConfig, *, has_features: bool) -> bool:
+    """Whether a fit may run both the networks and the maxent solver (`FitConfig.tabular_choice`): the
+    networks' method, sharing and a hold-out, on an MDP without features (`fit.tabular_choice_applies` adds
+    the demonstrations it needs)."""
+    return (
+        config.tabular_choice
+        and config.method == "meta_irl"
+        and not has_features
+        and config.sharing != "none"
+        and config.holdout_fraction > 0
+    )
 
 
 def ensemble_size(config: FitConfig, *, n_tasks: int, n_states: int) -> int:

@@ -28,12 +28,25 @@ import torch
 import torch.nn.functional as F
 
 from metairl_engine.backups import QRows, backup, successor_pairs
-from metairl_engine.config import FitConfig, baseline_column_issues, ensemble_size, sharing_block_count
+from metairl_engine.config import (
+    FitConfig,
+    baseline_column_issues,
+    chooses_tabular_method,
+    ensemble_size,
+    sharing_block_count,
+)
 from metairl_engine.coordinates import COORDINATE_OCTAVES, state_coordinates
 from metairl_engine.demos import validate_trajectories, with_stays_at_ends
 from metairl_engine.errors import Cancelled, InvalidInput, Issue, check
 from metairl_engine.evidence import NEXT_TO_VISITED
-from metairl_engine.holdout import Steps, repeats_its_decisions, split_steps
+from metairl_engine.holdout import (
+    Steps,
+    beats_by_standard_error,
+    demonstration_nlls,
+    repeats_its_decisions,
+    split_demonstrations,
+    split_steps,
+)
 from metairl_engine.mdp import MDP
 from metairl_engine.memory import EVAL_CHUNK, TRAIN_CHUNK, retained_heap
 from metairl_engine.networks import StackedMLP, fourier_features
@@ -73,10 +86,61 @@ def fit(
         from metairl_engine.maxent import fit_maxent
 
         return fit_maxent(tasks, config, progress=progress, should_stop=should_stop)
+    on = torch.device(device or "cpu")
     with retained_heap():
-        return _fit_choosing_task_inputs(
-            tasks, config, progress=progress, should_stop=should_stop, device=torch.device(device or "cpu")
-        )
+        if tabular_choice_applies(tasks, config):
+            return _fit_choosing_method(tasks, config, progress=progress, should_stop=should_stop, device=on)
+        return _fit_choosing_task_inputs(tasks, config, progress=progress, should_stop=should_stop, device=on)
+
+
+def tabular_choice_applies(tasks: Sequence[TaskData], config: FitConfig) -> bool:
+    """`FitConfig.tabular_choice` is made (`config.chooses_tabular_method`) and every task has a
+    demonstration to hold out and one to keep."""
+    return chooses_tabular_method(config, has_features=tasks[0].mdp.features is not None) and all(
+        len(t.trajectories) >= 2 for t in tasks
+    )
+
+
+def _fit_choosing_method(
+    tasks: Sequence[TaskData],
+    config: FitConfig,
+    *,
+    progress: ProgressCallback | None,
+    should_stop: StopCheck | None,
+    device: torch.device,
+) -> FitResult:
+    """`FitConfig.tabular_choice`: fit the networks and the tabular maxent solver on two thirds of each task's
+    demonstrations, keep the solver only if it predicts the held-out third better by more than one standard
+    error, and refit the one kept on every demonstration. Progress runs over the three fits."""
+    from metairl_engine.maxent import fit_maxent
+
+    train, held = split_demonstrations([t.trajectories for t in tasks])
+    train_tasks = [replace(t, trajectories=demos) for t, demos in zip(tasks, train, strict=True)]
+    networks, solver = replace(config, tabular_choice=False), replace(config, method="maxent")
+
+    def stage(index: int) -> ProgressCallback:
+        """Progress of fit ``index`` (0, 1, 2) as a third of the whole."""
+
+        def report(p: Progress) -> None:
+            if progress is not None:
+                step = index * config.max_steps + min(
+                    config.max_steps, p.step * config.max_steps // p.max_steps
+                )
+                progress(replace(p, step=step, max_steps=3 * config.max_steps))
+
+        return report
+
+    learned = _fit_choosing_task_inputs(
+        train_tasks, networks, progress=stage(0), should_stop=should_stop, device=device
+    )
+    tabular = fit_maxent(train_tasks, solver, progress=stage(1), should_stop=should_stop)
+    networks_nll, lengths = demonstration_nlls(learned.policies, held)
+    solver_nll, _ = demonstration_nlls(tabular.policies, held)
+    if beats_by_standard_error(solver_nll, networks_nll, lengths):
+        return fit_maxent(tasks, solver, progress=stage(2), should_stop=should_stop)
+    return _fit_choosing_task_inputs(
+        tasks, networks, progress=stage(2), should_stop=should_stop, device=device
+    )
 
 
 def _fit_choosing_task_inputs(

@@ -92,3 +92,48 @@ def split_steps(
         return Steps(*(np.concatenate([r[k] for r in rows]) for k in range(3)))
 
     return stack(parts[False]), stack(parts[True])
+
+
+def split_demonstrations(
+    demonstrations: Sequence[Sequence[Trajectory]],
+) -> tuple[list[list[Trajectory]], list[list[Trajectory]]]:
+    """(train, held-out) demonstrations per task: every third one (the 3rd, 6th, …; the 2nd of two) held out.
+
+    Whole demonstrations, not steps: a held-out demonstration starts where the training ones may not have
+    gone, so its likelihood tests how a reward extrapolates off the demonstrations. Needs ≥ 2 per task."""
+    train, held = [], []
+    for trajectories in demonstrations:
+        out = set(range(2, len(trajectories), 3)) or {len(trajectories) - 1}
+        train.append([tr for i, tr in enumerate(trajectories) if i not in out])
+        held.append([tr for i, tr in enumerate(trajectories) if i in out])
+    return train, held
+
+
+def demonstration_nlls(
+    policies: np.ndarray, held: Sequence[Sequence[Trajectory]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per held-out demonstration (tasks in order): the NLL of its actions under its task's policy
+    (T, S, A), summed over its steps, and its number of steps; two (N,) arrays."""
+    totals, lengths = [], []
+    for policy, trajectories in zip(policies, held, strict=True):
+        for tr in trajectories:
+            states, actions = state_action_pairs([tr])
+            totals.append(float(-np.log(np.maximum(policy[states, actions], 1e-12)).sum()))
+            lengths.append(len(actions))
+    return np.asarray(totals), np.asarray(lengths, dtype=np.float64)
+
+
+def beats_by_standard_error(challenger: np.ndarray, incumbent: np.ndarray, lengths: np.ndarray) -> bool:
+    """True if the challenger's NLL per held-out step is below the incumbent's by more than one standard
+    error of the difference, with held-out demonstrations as the independent units (steps of one demonstration
+    are not: a policy that sends one demonstration the wrong way mispredicts all its steps).
+
+    The difference per step is the ratio Σ d_j / Σ n_j of per-demonstration sums d_j over their lengths n_j;
+    its standard error is the ratio estimator's, √(N/(N−1)·Σ(d_j − m·n_j)²) / Σ n_j."""
+    d = challenger - incumbent
+    n = len(d)
+    if n < 2:
+        return False
+    mean = d.sum() / lengths.sum()
+    standard_error = float(np.sqrt(n / (n - 1) * np.sum((d - mean * lengths) ** 2)) / lengths.sum())
+    return bool(-mean > standard_error)

@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import functools
 import itertools
 import platform
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
-from metairl_engine.config import FitConfig, ensemble_size
+from metairl_engine.config import FitConfig, chooses_tabular_method, ensemble_size
 from metairl_engine.coordinates import LANDMARKS, TASK_COORDINATE_COLUMNS
 
 COORDINATE_COLUMNS = 10
@@ -124,6 +125,23 @@ def fit_memory(
     counts the tensors it names at their largest (e.g. every state as needed by the networks); small
     tensors and Python objects fall under `RUNTIME`.
     """
+    if chooses_tabular_method(config, has_features=n_features is not None):
+        # The networks and the maxent solver run one after the other: the peak is the larger one's.
+        estimate = functools.partial(
+            fit_memory,
+            n_tasks=n_tasks,
+            n_states=n_states,
+            n_actions=n_actions,
+            n_features=n_features,
+            n_steps=n_steps,
+            n_mdps=n_mdps,
+            successors=successors,
+        )
+        return max(
+            estimate(replace(config, tabular_choice=False)),
+            estimate(replace(config, method="maxent")),
+            key=lambda m: m.total,
+        )
     s, a, t = n_states, n_actions, n_tasks
     deterministic = successors == 1.0
     # A next-state table (int32), or the stored (s, a, next, p) triples and their CSR matrix.

@@ -1,0 +1,140 @@
+"""An MDP without features: the data choose between the networks on coordinates and the tabular maxent solver,
+by the likelihood of held-out whole demonstrations, and the result says which."""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from metairl_engine import MDP, FitConfig, TaskData
+from metairl_engine.demos import Trajectory
+from metairl_engine.fit import fit, tabular_choice_applies
+from metairl_engine.holdout import beats_by_standard_error, demonstration_nlls, split_demonstrations
+from metairl_engine.memory import fit_memory
+from metairl_engine.sim.terrain import make_tasks, make_world
+
+QUICK = FitConfig(hidden=(16,), max_steps=40, ensemble=2)
+
+
+def walk(*states: int) -> Trajectory:
+    """A demonstration through ``states``, taking action 0 at each but the last."""
+    return Trajectory(np.array(states, dtype=np.int64), np.zeros(len(states) - 1, dtype=np.int64))
+
+
+def featureless(mdp: MDP) -> MDP:
+    """The MDP uploaded with its layout but without features."""
+    return replace(mdp, features=None)
+
+
+def terrain_tasks(*, n_demos: int = 3) -> list[TaskData]:
+    """Three goal tasks on a small terrain without features: a cost smooth in the place."""
+    world = make_world(size=8, n_hills=2, seed=0)
+    mdp = featureless(world.mdp)
+    return [
+        TaskData(mdp, s.trajectories[:n_demos], s.name)
+        for s in make_tasks(world, n_tasks=3, n_demos=3, seed=1)
+    ]
+
+
+def test_every_third_demonstration_is_held_out_and_the_second_of_two() -> None:
+    demos = [[walk(i, i) for i in range(n)] for n in (3, 10, 2)]
+    train, held = split_demonstrations(demos)
+    assert [[int(tr.states[0]) for tr in h] for h in held] == [[2], [2, 5, 8], [1]]
+    assert [[int(tr.states[0]) for tr in t] for t in train] == [[0, 1], [0, 1, 3, 4, 6, 7, 9], [0]]
+
+
+def test_demonstration_nlls_sum_each_held_out_demonstration_s_steps_under_its_task_s_policy() -> None:
+    policies = np.array([[[0.5, 0.5], [0.25, 0.75]], [[0.1, 0.9], [1.0, 0.0]]])  # (T=2, S=2, A=2)
+    totals, lengths = demonstration_nlls(policies, [[walk(0, 1, 1)], [walk(1, 0), walk(0, 0)]])
+    np.testing.assert_allclose(totals, [-np.log(0.5) - np.log(0.25), -np.log(1.0), -np.log(0.1)])
+    np.testing.assert_array_equal(lengths, [2, 1, 1])
+
+
+def test_the_solver_wins_only_by_more_than_one_standard_error_counted_per_demonstration() -> None:
+    lengths = np.array([10.0, 10.0, 10.0, 10.0])
+    incumbent = np.array([20.0, 20.0, 20.0, 20.0])
+    spread = np.array([-1.0, 1.0, -1.0, 1.0])  # per-demonstration differences around their mean
+    standard_error = float(np.sqrt(4 / 3 * np.sum(spread**2)) / lengths.sum())
+    assert beats_by_standard_error(incumbent + spread - 1.01 * standard_error * lengths, incumbent, lengths)
+    assert not beats_by_standard_error(
+        incumbent + spread - 0.99 * standard_error * lengths, incumbent, lengths
+    )
+    assert not beats_by_standard_error(
+        incumbent[:1] - 5, incumbent[:1], lengths[:1]
+    )  # one demonstration: no error
+
+
+def test_the_choice_is_the_result_s_config_and_refitting_with_it_gives_the_same_result() -> None:
+    tasks = terrain_tasks()
+    chosen = fit(tasks, QUICK)
+    assert chosen.config.method == "maxent" or chosen.config.tabular_choice is False
+    again = fit(tasks, chosen.config)
+    np.testing.assert_array_equal(chosen.rewards, again.rewards)
+
+
+def test_the_choice_reports_progress_over_its_three_fits() -> None:
+    seen: list[tuple[int, int]] = []
+    fit(terrain_tasks(), replace(QUICK, patience=0), progress=lambda p: seen.append((p.step, p.max_steps)))
+    assert {m for _, m in seen} == {120} and seen[-1][0] == 120
+    assert all(b >= a for (a, _), (b, _) in itertools.pairwise(seen))
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        {"tabular_choice": False},
+        {"sharing": "none"},
+        {"holdout_fraction": 0.0},
+        {"method": "maxent"},
+    ],
+)
+def test_no_choice_where_the_config_asks_for_one_model(change: dict[str, object]) -> None:
+    assert tabular_choice_applies(terrain_tasks(), QUICK)
+    assert not tabular_choice_applies(terrain_tasks(), replace(QUICK, **change))  # type: ignore[arg-type]
+
+
+def test_no_choice_with_features_or_a_single_demonstration_per_task() -> None:
+    world = make_world(size=8, n_hills=2, seed=0)
+    sims = make_tasks(world, n_tasks=2, n_demos=3, seed=1)
+    assert not tabular_choice_applies([TaskData(world.mdp, s.trajectories) for s in sims], QUICK)
+    assert not tabular_choice_applies(terrain_tasks(n_demos=1), QUICK)
+    steps: list[int] = []
+    result = fit(terrain_tasks(n_demos=1), QUICK, progress=lambda p: steps.append(p.max_steps))
+    assert set(steps) == {QUICK.max_steps} and result.config.tabular_choice is True
+
+
+def test_a_cost_smooth_in_the_place_stays_with_the_networks() -> None:
+    """A terrain's cost carries over between neighbouring places, as coordinates assume: the networks predict
+    the held-out demonstrations better than a solver that leaves unvisited states at 0."""
+    result = fit(terrain_tasks(), FitConfig(max_steps=200))
+    assert result.config.method == "meta_irl" and result.config.tabular_choice is False
+
+
+@pytest.mark.parametrize("solver_wins", [True, False])
+def test_the_model_that_predicts_the_held_out_demonstrations_is_refitted_on_all(
+    monkeypatch: pytest.MonkeyPatch, solver_wins: bool
+) -> None:
+    compared: list[tuple[int, int]] = []
+
+    def verdict(challenger: np.ndarray, incumbent: np.ndarray, lengths: np.ndarray) -> bool:
+        compared.append((len(challenger), len(incumbent)))
+        return solver_wins
+
+    monkeypatch.setattr("metairl_engine.fit.beats_by_standard_error", verdict)
+    tasks = terrain_tasks()
+    result = fit(tasks, QUICK)
+    assert compared == [(3, 3)]  # one held-out demonstration per task, scored under both models
+    expected = replace(QUICK, method="maxent") if solver_wins else replace(QUICK, tabular_choice=False)
+    assert result.config == expected
+    np.testing.assert_array_equal(result.rewards, fit(tasks, expected).rewards)
+
+
+def test_the_memory_estimate_of_a_choice_is_the_larger_of_its_two_models() -> None:
+    sizes = {"n_tasks": 2, "n_states": 400, "n_actions": 4, "n_features": None, "n_steps": 200, "n_mdps": 1}
+    both = fit_memory(FitConfig(), **sizes).total  # type: ignore[arg-type]
+    networks = fit_memory(FitConfig(tabular_choice=False), **sizes).total  # type: ignore[arg-type]
+    solver = fit_memory(FitConfig(method="maxent"), **sizes).total  # type: ignore[arg-type]
+    assert both == max(networks, solver)
