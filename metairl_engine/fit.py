@@ -80,6 +80,8 @@ def fit(
     ``device`` ("cpu", "cuda", "cuda:1"; None: the CPU) is where the meta-IRL method's tensors live; the
     result is numpy either way. The networks are initialised on the CPU, so a seed gives the same starting
     weights on every device. The ``maxent`` method always runs on the CPU (its planning is numpy/scipy).
+    On an MDP without features the held-out demonstrations may choose the maxent solver instead
+    (`FitConfig.tabular_choice`); the result's ``config`` says which ran.
     """
     validate_tasks(tasks)
     if config.method == "maxent":

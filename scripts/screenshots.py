@@ -26,8 +26,9 @@ SIZE = 6
 RIGHT, LEFT, UP, DOWN = range(4)
 MOVES = {RIGHT: (1, 0), LEFT: (-1, 0), UP: (0, 1), DOWN: (0, -1)}
 TERMINAL = {"succeeded", "failed", "cancelled"}
-FAST = {"max_steps": 400, "hidden": [16], "tolerance": 0, "patience": 0, "seed": 0}
-"""A fit of these small tasks that takes a few seconds once a worker has it."""
+FAST = {"max_steps": 400, "hidden": [16], "tolerance": 0, "patience": 0, "seed": 0, "tabular_choice": False}
+"""A fit of these small tasks that takes a few seconds once a worker has it; the networks' method on this
+featureless grid (no choice of the tabular solver), so the screenshots show what the method learns."""
 DENSE_PROGRESS = {"METAIRL_JOB_EVENT_INTERVAL_S": "0.1", "METAIRL_JOB_HEARTBEAT_S": "0.1"}
 """Progress samples ten times a second, so even a fit of a few seconds draws a curve."""
 
