@@ -384,6 +384,7 @@ def run_one(world: RewardWorld, sims: list[SimTask], config: FitConfig) -> dict[
         "kept_step": result.best_step,
         "shrinkage": result.shrinkage,
         "task_features": result.config.task_features,
+        "method": result.config.method,
         "heldout_nll": None if kept is None else float(kept),
         "cpu_seconds": cpu,
     }
@@ -769,17 +770,21 @@ barely pool (the `networks-only` rows of the cache, `tabular_choice` off): +0.05
 ± 0.018 at 10, and their EVD / random is over none's on worlds 0 … 5 at 3 (0.512 against 0.463) and at 10
 (0.232 against 0.195). Objectworld's reward is a function of where the objects are, and seen through the
 coordinates alone it is a map of small patches that the networks' smooth extrapolation from a few paths does
-not reach; the tabular maxent solver, which extrapolates nothing, is the best of the three there (Pearson
-0.186 and 0.316 at 3 and 10, EVD / random 0.315 and 0.149). The default lets held-out demonstrations choose
-between the two (`tabular_choice`): it kept the solver on 5 of worlds 0 … 5 and 8 of 6 … 17 at 3
-demonstrations and on 5 of 6 at 10, and is ahead of none by +0.090 ± 0.031 and +0.097 ± 0.012 at 3
-(0.160 and 0.158), +0.148 ± 0.031 at 10 (0.279), its EVD / random under none's in all three (0.339, 0.346
-and 0.165 against 0.463, 0.485 and 0.195). World by world, on worlds 6 … 17 at 3 demonstrations: with two
-tasks the default's Pearson is under none's on 2 (worlds 7 and 15) and its EVD / random over none's on 1
-(15); without features none is under and one over (13), and six are ahead by less than +0.10. A terrain's
-cost, smooth in the place, is what the networks' extrapolation suits, and there the held-out demonstrations
-keep them (benchmarks/RESULTS.md, the "(no features)" rows) but for one world of thirty (repo world 9,
-0.521 → 0.085)."""
+not reach; the tabular maxent solver, which extrapolates nothing, is the better there (Pearson 0.186 and 0.316
+at 3 and 10, EVD / random 0.315 and 0.149), and it leaves each task to its own few paths. The default lets held-out
+demonstrations choose (`tabular_choice`: every demonstration held out once, the networks against the solver
+alone) and where the solver wins answers with its shared form (`shared_maxent`: every task's reward one
+shared reward but for a bonus where its demonstrations stopped by choice, docs/method.md "The tabular
+solvers"). It chose the shared solver on 6 of worlds 0 … 5 and 10 of 6 … 17 at 3 demonstrations and on
+all 6 at 10, and is ahead of none by +0.355 ± 0.020 and +0.311 ± 0.045 at 3 (0.425 and 0.372; with
+one fold and the solver alone, the rows of engine `solver-alone` in the cache, 0.160 and 0.158) and by
++0.459 ± 0.013 at 10 (0.591; before 0.279), its EVD / random under none's in all three (0.288, 0.285 and 0.123
+against 0.463, 0.485 and 0.195; before 0.339, 0.346 and 0.165). World by world, on worlds 6 … 17 at 3
+demonstrations: with two tasks the default's Pearson is under none's on 2 (worlds 7 and 15) and its EVD /
+random over none's on 1 (15); without features the networks were kept on worlds 10 and 13, both under none's
+Pearson and 13 over its EVD / random, and every other world is ahead by more than +0.10. A terrain's cost,
+smooth in the place, is what the networks' extrapolation suits, and there the held-out demonstrations keep
+them on all thirty worlds (benchmarks/RESULTS.md, the "(no features)" rows)."""
 
 TASK_INPUTS_TEXT = f"""With `task_features: "auto"` a fit is made twice, the task networks seeing the features and the place,
 then the place alone (the baseline sees the features either way), and the place alone is kept only where its

@@ -46,7 +46,7 @@ class JobState:
     shrinkage: float | None = None
     """Once succeeded: the λ of each task reward = baseline + λ·S_q(learned task reward − baseline), chosen by
     held-out likelihood (1: deviations at full size, 0.5: half-way to the baseline); None before, and with
-    ``maxent``."""
+    the tabular methods (``maxent``, ``shared_maxent``)."""
     sparsity: float | None = None
     """Once succeeded: the q of S_q, the share of each task's deviations from the baseline set to zero (0: every
     deviation kept); None as ``shrinkage`` is."""

@@ -13,7 +13,7 @@ from typing import Any, Literal
 
 from metairl_engine.errors import InvalidInput, Issue, check
 
-Method = Literal["meta_irl", "maxent"]
+Method = Literal["meta_irl", "maxent", "shared_maxent"]
 Sharing = Literal["none", "l2", "huber", "std", "entropy"]
 SharingStates = Literal["all", "visited"]
 Backup = Literal["max", "logsumexp", "bgi"]
@@ -56,7 +56,9 @@ class FitConfig:
 
     method: Method = "meta_irl"
     """``meta_irl``: the paper's VR-function method with reward sharing; ``maxent``: tabular
-    maximum-causal-entropy IRL by soft value iteration (reference solver, one task at a time)."""
+    maximum-causal-entropy IRL by soft value iteration (reference solver, one task at a time);
+    ``shared_maxent``: the same solver with the rewards shared, every task's reward one shared reward (the
+    baseline) except at the final states of its demonstrations that ended by choice (`maxent.py`)."""
 
     sharing: Sharing = "huber"
     """Reward-sharing loss between each task reward r_i and the baseline r_b (paper §III-C). With ``none``
@@ -148,14 +150,17 @@ class FitConfig:
 
     tabular_choice: bool = True
     """With an MDP without state features, sharing and a hold-out: whether the data may choose the tabular
-    ``maxent`` solver over the networks. Coordinates assume the reward is smooth in the place, as a terrain's
-    cost is; a reward of small patches (objectworld's) it is not, and there the networks extrapolate a wrong
-    trend over every state no demonstration reaches, while the solver leaves them at 0. Both are fitted on
-    two thirds of each task's demonstrations (`holdout.split_demonstrations`), and the solver is kept only if
-    its policies predict the held-out third better by more than one standard error, counted per held-out
-    demonstration (`holdout.beats_by_standard_error`); then it is refitted on every demonstration. The
-    choice is the result's ``config`` (``method``, or this set to False), so refitting with it gives the same
-    result. Costs two extra fits on such MDPs, none elsewhere (docs/method.md, "MDPs without features")."""
+    solver with shared rewards (``shared_maxent``) over the networks. Coordinates assume the reward is smooth
+    in the place, as a terrain's cost is; a reward of small patches (objectworld's) it is not, and there the
+    networks extrapolate a wrong trend over every state no demonstration reaches, while the solver leaves
+    them at 0. Each task's demonstrations are split into up to three folds, each held out once
+    (`holdout.demonstration_folds`), and in each the networks and the solver each task alone (``maxent``,
+    which extrapolates nothing) are fitted on the rest; where the solver's policies predict the held-out
+    demonstrations better by more than one standard error, counted per demonstration
+    (`holdout.beats_by_standard_error`), ``shared_maxent`` is fitted on every demonstration, else the
+    networks are refitted. The choice is the result's ``config`` (``method``, or this set to False), so
+    refitting with it gives the same result. Costs up to six extra fits on such MDPs (three of them the
+    quick solver's), none elsewhere (docs/method.md, "MDPs without features")."""
 
     backup: Backup = "max"
     """Bellman backup V(s) from Q(s, ·): max (paper eq. 7), logsumexp (MaxEnt) or BGI's (1/k)·logsumexp(k·Q)."""
@@ -275,7 +280,7 @@ MAX_AUTO_MEMBERS = 4
 
 
 def chooses_tabular_method(config: FitConfig, *, has_features: bool) -> bool:
-    """Whether a fit may run both the networks and the maxent solver (`FitConfig.tabular_choice`): the
+    """Whether a fit may run both the networks and the tabular solver (`FitConfig.tabular_choice`): the
     networks' method, sharing and a hold-out, on an MDP without features (`fit.tabular_choice_applies` adds
     the demonstrations it needs)."""
     return (

@@ -42,9 +42,9 @@ from metairl_engine.evidence import NEXT_TO_VISITED
 from metairl_engine.holdout import (
     Steps,
     beats_by_standard_error,
+    demonstration_folds,
     demonstration_nlls,
     repeats_its_decisions,
-    split_demonstrations,
     split_steps,
 )
 from metairl_engine.mdp import MDP
@@ -79,12 +79,13 @@ def fit(
 
     ``device`` ("cpu", "cuda", "cuda:1"; None: the CPU) is where the meta-IRL method's tensors live; the
     result is numpy either way. The networks are initialised on the CPU, so a seed gives the same starting
-    weights on every device. The ``maxent`` method always runs on the CPU (its planning is numpy/scipy).
-    On an MDP without features the held-out demonstrations may choose the maxent solver instead
+    weights on every device. The tabular methods (``maxent``, ``shared_maxent``) always run on the CPU (their
+    planning is numpy/scipy). On an MDP without features the held-out demonstrations may choose the
+    ``shared_maxent`` solver instead
     (`FitConfig.tabular_choice`); the result's ``config`` says which ran.
     """
     validate_tasks(tasks)
-    if config.method == "maxent":
+    if config.method != "meta_irl":
         from metairl_engine.maxent import fit_maxent
 
         return fit_maxent(tasks, config, progress=progress, should_stop=should_stop)
@@ -111,38 +112,48 @@ def _fit_choosing_method(
     should_stop: StopCheck | None,
     device: torch.device,
 ) -> FitResult:
-    """`FitConfig.tabular_choice`: fit the networks and the tabular maxent solver on two thirds of each task's
-    demonstrations, keep the solver only if it predicts the held-out third better by more than one standard
-    error, and refit the one kept on every demonstration. Progress runs over the three fits."""
+    """`FitConfig.tabular_choice`: in each fold of the demonstrations (`demonstration_folds`: every one held
+    out once), fit the networks and the ``maxent`` solver on the rest; where the solver predicts the held-out
+    demonstrations better by more than one standard error, fit ``shared_maxent`` on every demonstration, else
+    refit the networks. The probe is the solver that extrapolates nothing, each task alone: the question is
+    whether the coordinates' extrapolation predicts where new demonstrations go, and the answer keeps the
+    sharing the config asks for. Progress runs over the 2K + 1 fits."""
     from metairl_engine.maxent import fit_maxent
 
-    train, held = split_demonstrations([t.trajectories for t in tasks])
-    train_tasks = [replace(t, trajectories=demos) for t, demos in zip(tasks, train, strict=True)]
-    networks, solver = replace(config, tabular_choice=False), replace(config, method="maxent")
+    folds = demonstration_folds([t.trajectories for t in tasks])
+    networks, probe = replace(config, tabular_choice=False), replace(config, method="maxent")
+    n_stages = 2 * len(folds) + 1
 
     def stage(index: int) -> ProgressCallback:
-        """Progress of fit ``index`` (0, 1, 2) as a third of the whole."""
+        """Progress of fit ``index`` (0 … 2K) as its share of the whole."""
 
         def report(p: Progress) -> None:
             if progress is not None:
                 step = index * config.max_steps + min(
                     config.max_steps, p.step * config.max_steps // p.max_steps
                 )
-                progress(replace(p, step=step, max_steps=3 * config.max_steps))
+                progress(replace(p, step=step, max_steps=n_stages * config.max_steps))
 
         return report
 
-    learned = _fit_choosing_task_inputs(
-        train_tasks, networks, progress=stage(0), should_stop=should_stop, device=device
-    )
-    tabular = fit_maxent(train_tasks, solver, progress=stage(1), should_stop=should_stop)
-    networks_nll, lengths = demonstration_nlls(learned.policies, held)
-    solver_nll, _ = demonstration_nlls(tabular.policies, held)
-    if beats_by_standard_error(solver_nll, networks_nll, lengths):
-        return fit_maxent(tasks, solver, progress=stage(2), should_stop=should_stop)
-    return _fit_choosing_task_inputs(
-        tasks, networks, progress=stage(2), should_stop=should_stop, device=device
-    )
+    networks_nll, solver_nll, lengths = [], [], []
+    for k, (train, held) in enumerate(folds):
+        train_tasks = [replace(t, trajectories=demos) for t, demos in zip(tasks, train, strict=True)]
+        learned = _fit_choosing_task_inputs(
+            train_tasks, networks, progress=stage(2 * k), should_stop=should_stop, device=device
+        )
+        tabular = fit_maxent(train_tasks, probe, progress=stage(2 * k + 1), should_stop=should_stop)
+        nll, length = demonstration_nlls(learned.policies, held)
+        networks_nll.append(nll)
+        lengths.append(length)
+        solver_nll.append(demonstration_nlls(tabular.policies, held)[0])
+    last = stage(n_stages - 1)
+    if beats_by_standard_error(
+        np.concatenate(solver_nll), np.concatenate(networks_nll), np.concatenate(lengths)
+    ):
+        shared = replace(config, method="shared_maxent")
+        return fit_maxent(tasks, shared, progress=last, should_stop=should_stop)
+    return _fit_choosing_task_inputs(tasks, networks, progress=last, should_stop=should_stop, device=device)
 
 
 def _fit_choosing_task_inputs(

@@ -94,19 +94,26 @@ def split_steps(
     return stack(parts[False]), stack(parts[True])
 
 
-def split_demonstrations(
+DEMONSTRATION_FOLDS = 3
+"""The most folds `demonstration_folds` splits each task's demonstrations into."""
+
+
+def demonstration_folds(
     demonstrations: Sequence[Sequence[Trajectory]],
-) -> tuple[list[list[Trajectory]], list[list[Trajectory]]]:
-    """(train, held-out) demonstrations per task: every third one (the 3rd, 6th, …; the 2nd of two) held out.
+) -> list[tuple[list[list[Trajectory]], list[list[Trajectory]]]]:
+    """(train, held-out) demonstrations per task, for each of K = min(3, fewest per task) folds: fold k holds
+    out each task's demonstrations i with i mod K = k, so every demonstration is held out exactly once.
 
     Whole demonstrations, not steps: a held-out demonstration starts where the training ones may not have
     gone, so its likelihood tests how a reward extrapolates off the demonstrations. Needs ≥ 2 per task."""
-    train, held = [], []
-    for trajectories in demonstrations:
-        out = set(range(2, len(trajectories), 3)) or {len(trajectories) - 1}
-        train.append([tr for i, tr in enumerate(trajectories) if i not in out])
-        held.append([tr for i, tr in enumerate(trajectories) if i in out])
-    return train, held
+    n_folds = min(DEMONSTRATION_FOLDS, min(len(t) for t in demonstrations))
+    return [
+        (
+            [[tr for i, tr in enumerate(t) if i % n_folds != k] for t in demonstrations],
+            [[tr for i, tr in enumerate(t) if i % n_folds == k] for t in demonstrations],
+        )
+        for k in range(n_folds)
+    ]
 
 
 def demonstration_nlls(

@@ -1,4 +1,5 @@
-"""Reference solver: tabular maximum-causal-entropy IRL, one task at a time (numpy/scipy, no networks).
+"""Reference solvers: tabular maximum-causal-entropy IRL (numpy/scipy, no networks), each task alone or all
+tasks around one shared reward.
 
 For each task, find the state reward r (S,) maximising the likelihood of the demonstrated actions under
 the soft-optimal policy π = softmax(b·Q) with Q(s, a) = Σ_s' P(s'|s, a)[r(s') + γV(s')] and
@@ -8,22 +9,32 @@ V = (1/b) log Σ_a exp(b·Q) (Ziebart et al. 2010), by L-BFGS with the exact gra
 
 (differentiate Q = P(r + γV) and V = Σ_a π Q; the inverse is applied by fixed-point iteration, no solve).
 A small ridge ``RIDGE/2·‖r‖²`` makes unvisited states' rewards 0 instead of undetermined.
-The result has FitResult's shape; its ``baseline`` is the mean of the task rewards (this solver has none).
+
+``method="maxent"`` solves each task alone; its ``baseline`` is the mean of the task rewards (it learns none).
+``method="shared_maxent"`` is reward sharing in the tabular solver: every task's reward is one shared reward
+r_b plus, at the final states of the task's demonstrations that `ended_by_choice`, a bonus of its own,
+
+    r_i = r_b + Σ_e u_(i,e)·1[s = e],   minimise Σ_i NLL_i(r_i)/N_i + RIDGE/2·(‖r_b‖² + ‖u‖²),
+
+so a state any task's demonstrations pass gets its reward from all of them, and only where a demonstration
+stopped because it was done (its goal) may a task's reward depart from the others'. The ``baseline`` is r_b.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import minimize
 
 from metairl_engine.config import FitConfig
-from metairl_engine.demos import state_action_pairs
+from metairl_engine.demos import ended_by_choice, state_action_pairs, with_stays_at_ends
 from metairl_engine.errors import Cancelled
-from metairl_engine.planning import policy_matrix, transition_matrix, value_iteration
+from metairl_engine.mdp import MDP
+from metairl_engine.planning import policy_matrix, stay_actions, transition_matrix, value_iteration
 from metairl_engine.results import FitResult, Progress, TaskData
 
 RIDGE = 1e-3
@@ -37,62 +48,92 @@ def fit_maxent(
     progress: Callable[[Progress], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
 ) -> FitResult:
-    """Solve each task independently; steps in `Progress` count L-BFGS iterations over all tasks."""
-    started = time.perf_counter()
-    history: list[Progress] = []
-    total_steps = config.max_steps * len(tasks)
-    rewards, values, policies = [], [], []
-    for task in tasks:
-        mdp = task.mdp
-        p = transition_matrix(mdp)
-        objective = _TaskObjective(task, config, should_stop=should_stop)
+    """Solve each task alone (``maxent``) or all around a shared reward (``shared_maxent``); steps in
+    `Progress` count L-BFGS iterations over all tasks."""
+    matrices: dict[int, tuple[sp.csr_matrix, np.ndarray | None]] = {}
+    stays = config.method == "shared_maxent" and config.stay_at_ends
 
-        def report(_: np.ndarray, objective: _TaskObjective = objective) -> None:
+    def objective_of(task: TaskData) -> _TaskObjective:
+        """The task's objective, on one transition matrix per distinct MDP; ``shared_maxent`` with
+        `FitConfig.stay_at_ends` also counts the stay at each final state a demonstration ended at by choice."""
+        if id(task.mdp) not in matrices:
+            matrices[id(task.mdp)] = transition_matrix(task.mdp), stay_actions(task.mdp) if stays else None
+        p, stay = matrices[id(task.mdp)]
+        if stay is not None:
+            task = replace(task, trajectories=with_stays_at_ends(task.trajectories, stay))
+        return _TaskObjective(task, p, config, should_stop=should_stop)
+
+    objectives = [objective_of(t) for t in tasks]
+    if config.method == "shared_maxent":
+        reporter = _Reporter(config.max_steps, progress)
+        shared = _SharedObjective(tasks, objectives)
+        baseline, rewards = shared.rewards(reporter.minimize(shared, shared.start(), config))
+    else:
+        reporter = _Reporter(config.max_steps * len(tasks), progress)
+        rewards = np.asarray([reporter.minimize(o, np.zeros(o.mdp.n_states), config) for o in objectives])
+        baseline = rewards.astype(np.float32).mean(axis=0)
+    plans = [
+        value_iteration(o.p, r, gamma=o.mdp.gamma, confidence=config.confidence)
+        for o, r in zip(objectives, rewards, strict=True)
+    ]
+    return FitResult(
+        baseline=np.asarray(baseline, dtype=np.float32),
+        rewards=np.asarray(rewards, dtype=np.float32),
+        values=np.asarray([plan.value for plan in plans], dtype=np.float32),
+        policies=np.asarray([plan.policy for plan in plans], dtype=np.float32),
+        history=reporter.history,
+        best_step=len(reporter.history),
+        config=config,
+    )
+
+
+class _Reporter:
+    """Runs L-BFGS on an objective and records each iteration as `Progress` out of ``total_steps``."""
+
+    def __init__(self, total_steps: int, progress: Callable[[Progress], None] | None):
+        self.total_steps, self.progress = total_steps, progress
+        self.history: list[Progress] = []
+        self.started = time.perf_counter()
+
+    def minimize(
+        self, objective: _TaskObjective | _SharedObjective, start: np.ndarray, config: FitConfig
+    ) -> np.ndarray:
+        """The minimiser of ``objective`` from ``start`` (at most ``config.max_steps`` iterations)."""
+
+        def report(_: np.ndarray) -> None:
             """Record one L-BFGS iteration."""
             record = Progress(
-                step=len(history) + 1,
-                max_steps=total_steps,
+                step=len(self.history) + 1,
+                max_steps=self.total_steps,
                 loss=objective.loss,
                 irl_loss=objective.nll,
                 sharing_loss=0.0,
                 heldout_nll=None,
-                elapsed_s=time.perf_counter() - started,
+                elapsed_s=time.perf_counter() - self.started,
             )
-            history.append(record)
-            if progress is not None:
-                progress(record)
+            self.history.append(record)
+            if self.progress is not None:
+                self.progress(record)
 
         solution = minimize(
             objective,
-            np.zeros(mdp.n_states),
+            start,
             jac=True,
             method="L-BFGS-B",
             callback=report,
             options={"maxiter": config.max_steps, "ftol": config.tolerance, "gtol": 1e-8},
         )
-        r = solution.x
-        plan = value_iteration(p, r, gamma=mdp.gamma, confidence=config.confidence)
-        rewards.append(r)
-        values.append(plan.value)
-        policies.append(plan.policy)
-    reward_arr = np.asarray(rewards, dtype=np.float32)
-    return FitResult(
-        baseline=reward_arr.mean(axis=0),
-        rewards=reward_arr,
-        values=np.asarray(values, dtype=np.float32),
-        policies=np.asarray(policies, dtype=np.float32),
-        history=history,
-        best_step=len(history),
-        config=config,
-    )
+        return np.asarray(solution.x)
 
 
 class _TaskObjective:
     """Mean NLL + ridge of one task's demonstrations and its gradient, as a function of the reward (S,)."""
 
-    def __init__(self, task: TaskData, config: FitConfig, *, should_stop: Callable[[], bool] | None):
-        self.mdp, self.config, self.should_stop = task.mdp, config, should_stop
-        self.p = transition_matrix(task.mdp)
+    def __init__(
+        self, task: TaskData, p: sp.csr_matrix, config: FitConfig, *, should_stop: Callable[[], bool] | None
+    ):
+        self.mdp: MDP = task.mdp
+        self.p, self.config, self.should_stop = p, config, should_stop
         self.states, self.actions = state_action_pairs(task.trajectories)
         n_sa = np.bincount(self.states * self.mdp.n_actions + self.actions, minlength=self.p.shape[0])
         self.n_s = np.bincount(self.states, minlength=self.mdp.n_states).astype(np.float64)
@@ -101,7 +142,13 @@ class _TaskObjective:
         self.loss = self.nll = 0.0
 
     def __call__(self, r: np.ndarray) -> tuple[float, np.ndarray]:
-        """(objective, gradient) at reward r; checks for cancellation first."""
+        """(objective, gradient) at reward r."""
+        nll, gradient = self.likelihood(r)
+        self.loss = nll + 0.5 * RIDGE * float(r @ r)
+        return self.loss, gradient + RIDGE * r
+
+    def likelihood(self, r: np.ndarray) -> tuple[float, np.ndarray]:
+        """(mean NLL per demonstrated step, its gradient) at reward r; checks for cancellation first."""
         if self.should_stop is not None and self.should_stop():
             raise Cancelled("fit cancelled")
         b = self.config.confidence
@@ -110,8 +157,49 @@ class _TaskObjective:
         self.nll = -float(np.mean(np.log(np.maximum(plan.policy[self.states, self.actions], 1e-300))))
         p_pi = policy_matrix(self.p, plan.policy)
         x = _discounted_solve(p_pi, self.demanded - p_pi.T @ self.n_s, gamma=self.mdp.gamma)
-        self.loss = self.nll + 0.5 * RIDGE * float(r @ r)
-        return self.loss, -b * x / len(self.states) + RIDGE * r
+        return self.nll, -b * x / len(self.states)
+
+
+class _SharedObjective:
+    """Σ_i mean NLL_i + ridge of ``shared_maxent`` and its gradient, as a function of x = (r_b (S,), u (K,)):
+    the shared reward and the K bonuses, one per task and final state its demonstrations ended at by choice."""
+
+    def __init__(self, tasks: Sequence[TaskData], objectives: Sequence[_TaskObjective]):
+        self.objectives = objectives
+        self.n_states = tasks[0].mdp.n_states
+        ends = [_chosen_ends(t) for t in tasks]
+        self.bonus_task = np.repeat(np.arange(len(tasks)), [len(e) for e in ends])
+        self.bonus_state = np.concatenate(ends)
+        self.loss = self.nll = 0.0
+
+    def start(self) -> np.ndarray:
+        """All rewards 0."""
+        return np.zeros(self.n_states + len(self.bonus_state))
+
+    def rewards(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The shared reward (S,) and the task rewards (T, S) at x."""
+        baseline, bonus = x[: self.n_states], x[self.n_states :]
+        rewards = np.repeat(baseline[None], len(self.objectives), axis=0)
+        np.add.at(rewards, (self.bonus_task, self.bonus_state), bonus)
+        return baseline, rewards
+
+    def __call__(self, x: np.ndarray) -> tuple[float, np.ndarray]:
+        """(objective, gradient) at x."""
+        _, rewards = self.rewards(x)
+        terms = [o.likelihood(r) for o, r in zip(self.objectives, rewards, strict=True)]
+        gradients = np.asarray([g for _, g in terms])
+        self.nll = float(sum(nll for nll, _ in terms))  # summed over the tasks
+        self.loss = self.nll + 0.5 * RIDGE * float(x @ x)
+        gradient = np.concatenate([gradients.sum(axis=0), gradients[self.bonus_task, self.bonus_state]])
+        return self.loss, gradient + RIDGE * x
+
+
+def _chosen_ends(task: TaskData) -> np.ndarray:
+    """The distinct final states of the task's demonstrations that `ended_by_choice`: (E,) int64."""
+    chosen = ended_by_choice(task.trajectories)
+    return np.unique([int(t.states[-1]) for t, c in zip(task.trajectories, chosen, strict=True) if c]).astype(
+        np.int64
+    )
 
 
 def _discounted_solve(

@@ -63,9 +63,9 @@ class FitMemory:
     rows: int
     """The index tensors of the rows of Q (demonstrated steps and sharing rows), held throughout."""
     training: int
-    """One training step at its peak (maxent: one task's solve)."""
+    """One training step at its peak (the tabular methods: the solve)."""
     evaluation: int
-    """The final evaluation on every state, and the results (maxent: the results)."""
+    """The final evaluation on every state, and the results (the tabular methods: the results)."""
 
     @property
     def total(self) -> int:
@@ -121,12 +121,13 @@ def fit_memory(
     even where the features already are the coordinates and the fit adds none: a few columns too many); then the larger of one training step (the
     activations of one chunk of states forward and backward, Q and its gradient on every row, Adam's
     temporaries) and the final evaluation on every state (Q, values and policies of all networks, and the
-    results). With ``method="maxent"``: the inputs, one task's value iteration and the results. Each term
+    results). With the tabular methods (``maxent``, ``shared_maxent``): the inputs, one value iteration, each
+    task's objective and the results. Each term
     counts the tensors it names at their largest (e.g. every state as needed by the networks); small
     tensors and Python objects fall under `RUNTIME`.
     """
     if chooses_tabular_method(config, has_features=n_features is not None):
-        # The networks and the maxent solver run one after the other: the peak is the larger one's.
+        # The networks and the tabular solver run one after the other: the peak is the larger one's.
         estimate = functools.partial(
             fit_memory,
             n_tasks=n_tasks,
@@ -139,7 +140,7 @@ def fit_memory(
         )
         return max(
             estimate(replace(config, tabular_choice=False)),
-            estimate(replace(config, method="maxent")),
+            estimate(replace(config, method="shared_maxent")),
             key=lambda m: m.total,
         )
     s, a, t = n_states, n_actions, n_tasks
@@ -147,9 +148,11 @@ def fit_memory(
     # A next-state table (int32), or the stored (s, a, next, p) triples and their CSR matrix.
     transitions = n_mdps * (s * a * 4 if deterministic else int(s * a * successors * (16 + 12)))
     inputs = transitions + n_mdps * s * (n_features or 0) * FLOAT + n_steps * 2 * INDEX * 3
-    if config.method == "maxent":
+    if config.method != "meta_irl":
         nnz = int(s * a * successors)
-        solve = nnz * 48 + s * a * 8 * 6 + s * 8 * 40  # CSR P and Pᵀ, P_π; Q, policy, temporaries; L-BFGS
+        # CSR P of each MDP, Pᵀ and P_π; Q, policy, temporaries; L-BFGS; each task's objective (warm-started
+        # value, visits, Σ P); shared_maxent optimises every state of the shared reward at once.
+        solve = (n_mdps + 3) * nnz * 12 + s * a * 8 * 6 + s * 8 * 40 + t * s * 8 * 3
         results = t * s * a * 12 + 3 * t * s * FLOAT  # float64 policies per task, then their float32 copy
         return FitMemory(RUNTIME, inputs, 0, 0, solve, results)
 

@@ -209,7 +209,7 @@ def store_results(
 ) -> None:
     """Write every reward, value and policy, with each reward's spread across the ensemble's members and
     the evidence the demonstrations of ``tasks`` give per state (none without tasks), the fit's per-step
-    history and its shrinkage λ and sparsity q (none with maxent, which learns no baseline to shrink toward), and mark the
+    history and its shrinkage λ and sparsity q (none with the tabular methods, which shrink nothing), and mark the
     job succeeded with the config as fitted (`FitConfig.task_features` ``auto`` replaced by its choice), in one
     transaction, if still owned."""
     n_actions = result.policies.shape[2]
@@ -225,8 +225,8 @@ def store_results(
             values={
                 "best_step": result.best_step,
                 "config": result.config.to_dict(),  # as fitted: a choice `auto` left to the fit, made
-                "shrinkage": None if result.config.method == "maxent" else result.shrinkage,
-                "sparsity": None if result.config.method == "maxent" else result.sparsity,
+                "shrinkage": None if result.config.method != "meta_irl" else result.shrinkage,
+                "sparsity": None if result.config.method != "meta_irl" else result.sparsity,
                 **progress_values(last),
             },
             message=f"finished after {len(result.history)} steps (kept step {result.best_step})",

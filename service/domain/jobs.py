@@ -128,8 +128,8 @@ class JobOut(Resource):
         "by held-out likelihood (`config.shrink_deviations`). 1: the deviations kept at full size (with "
         "`sparsity` 0, the task rewards as learned; also where no choice is made: `shrink_deviations` false, "
         "`sharing` none, no hold-out, or over 2^17 task-states); 0.5: half-way to the baseline; 0: every task "
-        "gets the baseline. Null until the job succeeds, with `maxent`, and for jobs that succeeded before λ was "
-        "kept.",
+        "gets the baseline. Null until the job succeeds, with the tabular methods (`maxent`, `shared_maxent`), and "
+        "for jobs that succeeded before λ was kept.",
     )
     sparsity: float | None = Field(
         description="The share q ∈ {0, 0.5, 0.9, 0.95, 0.99, 0.995} of each task's states whose deviation "

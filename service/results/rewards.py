@@ -166,9 +166,11 @@ MEAN_OF_TASKS = (
 
 
 def baseline_note(job: Job, layout: Layout | None) -> str | None:
-    """What a reader of this job's baseline must know: that it is no estimate (sharing none, maxent), or its
-    caveat on a velocity grid (out-and-back movements do not identify all of it; docs/motion.md)."""
-    if job.config.get("sharing") == "none" or job.config.get("method") == "maxent":
+    """What a reader of this job's baseline must know: that it is no estimate (the networks without sharing,
+    maxent; ``shared_maxent`` always learns one), or its caveat on a velocity grid (out-and-back movements do
+    not identify all of it; docs/motion.md)."""
+    method = job.config.get("method", "meta_irl")
+    if method == "maxent" or (method == "meta_irl" and job.config.get("sharing") == "none"):
         return MEAN_OF_TASKS
     if layout is not None and layout.channels == 8:
         return BASELINE_CAVEAT
@@ -221,7 +223,7 @@ def not_stored(quantity: Quantity, reward_id: str) -> Conflict:
     with one ensemble member, or what rows stored before it was kept lack."""
     if quantity == "uncertainty":
         return Conflict(
-            f"Reward {reward_id} has no uncertainty: its fit ran a single ensemble member (the maxent method, "
+            f"Reward {reward_id} has no uncertainty: its fit ran a single ensemble member (a tabular method, "
             "config ensemble 1, or a large fit's automatic choice), so there is no spread across members, or "
             "it was stored before the spread was kept. Rerun the job with config ensemble ≥ 2 to get one."
         )

@@ -1,5 +1,6 @@
-"""An MDP without features: the data choose between the networks on coordinates and the tabular maxent solver,
-by the likelihood of held-out whole demonstrations, and the result says which."""
+"""An MDP without features: the data choose between the networks on coordinates and the tabular solver (probed
+each task alone, answered with shared rewards), by the likelihood of held-out whole demonstrations, and the
+result says which."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import pytest
 from metairl_engine import MDP, FitConfig, TaskData
 from metairl_engine.demos import Trajectory
 from metairl_engine.fit import fit, tabular_choice_applies
-from metairl_engine.holdout import beats_by_standard_error, demonstration_nlls, split_demonstrations
+from metairl_engine.holdout import beats_by_standard_error, demonstration_folds, demonstration_nlls
 from metairl_engine.memory import fit_memory
 from metairl_engine.sim.terrain import make_tasks, make_world
 
@@ -39,11 +40,17 @@ def terrain_tasks(*, n_demos: int = 3) -> list[TaskData]:
     ]
 
 
-def test_every_third_demonstration_is_held_out_and_the_second_of_two() -> None:
-    demos = [[walk(i, i) for i in range(n)] for n in (3, 10, 2)]
-    train, held = split_demonstrations(demos)
-    assert [[int(tr.states[0]) for tr in h] for h in held] == [[2], [2, 5, 8], [1]]
-    assert [[int(tr.states[0]) for tr in t] for t in train] == [[0, 1], [0, 1, 3, 4, 6, 7, 9], [0]]
+def test_every_demonstration_is_held_out_once_in_as_many_folds_as_the_fewest_allow_up_to_three() -> None:
+    demos = [[walk(i, i) for i in range(n)] for n in (3, 10, 4)]
+    folds = demonstration_folds(demos)
+    held = [[[int(tr.states[0]) for tr in h] for h in fold_held] for _, fold_held in folds]
+    assert held == [[[0], [0, 3, 6, 9], [0, 3]], [[1], [1, 4, 7], [1]], [[2], [2, 5, 8], [2]]]
+    for train, fold_held in folds:
+        for kept, out, task in zip(train, fold_held, demos, strict=True):
+            assert sorted(int(tr.states[0]) for tr in kept + out) == list(range(len(task)))
+    two = demonstration_folds([[walk(0, 0), walk(1, 1)], [walk(i, i) for i in range(5)]])
+    held_two = [[int(tr.states[0]) for tr in h] for _, fold_held in two for h in fold_held]
+    assert held_two == [[0], [0, 2, 4], [1], [1, 3]]
 
 
 def test_demonstration_nlls_sum_each_held_out_demonstration_s_steps_under_its_task_s_policy() -> None:
@@ -70,15 +77,15 @@ def test_the_solver_wins_only_by_more_than_one_standard_error_counted_per_demons
 def test_the_choice_is_the_result_s_config_and_refitting_with_it_gives_the_same_result() -> None:
     tasks = terrain_tasks()
     chosen = fit(tasks, QUICK)
-    assert chosen.config.method == "maxent" or chosen.config.tabular_choice is False
+    assert chosen.config.method == "shared_maxent" or chosen.config.tabular_choice is False
     again = fit(tasks, chosen.config)
     np.testing.assert_array_equal(chosen.rewards, again.rewards)
 
 
-def test_the_choice_reports_progress_over_its_three_fits() -> None:
+def test_the_choice_reports_progress_over_its_seven_fits() -> None:
     seen: list[tuple[int, int]] = []
     fit(terrain_tasks(), replace(QUICK, patience=0), progress=lambda p: seen.append((p.step, p.max_steps)))
-    assert {m for _, m in seen} == {120} and seen[-1][0] == 120
+    assert {m for _, m in seen} == {280} and seen[-1][0] == 280  # 3 folds × (networks, solver), the refit
     assert all(b >= a for (a, _), (b, _) in itertools.pairwise(seen))
 
 
@@ -89,6 +96,7 @@ def test_the_choice_reports_progress_over_its_three_fits() -> None:
         {"sharing": "none"},
         {"holdout_fraction": 0.0},
         {"method": "maxent"},
+        {"method": "shared_maxent"},
     ],
 )
 def test_no_choice_where_the_config_asks_for_one_model(change: dict[str, object]) -> None:
@@ -117,17 +125,24 @@ def test_a_cost_smooth_in_the_place_stays_with_the_networks() -> None:
 def test_the_model_that_predicts_the_held_out_demonstrations_is_refitted_on_all(
     monkeypatch: pytest.MonkeyPatch, solver_wins: bool
 ) -> None:
-    compared: list[tuple[int, int]] = []
+    compared: list[np.ndarray] = []
 
     def verdict(challenger: np.ndarray, incumbent: np.ndarray, lengths: np.ndarray) -> bool:
-        compared.append((len(challenger), len(incumbent)))
+        compared.append(challenger)
+        assert len(challenger) == len(incumbent) == 9  # every demonstration of the 3 tasks, under both
         return solver_wins
 
     monkeypatch.setattr("metairl_engine.fit.beats_by_standard_error", verdict)
     tasks = terrain_tasks()
     result = fit(tasks, QUICK)
-    assert compared == [(3, 3)]  # one held-out demonstration per task, scored under both models
-    expected = replace(QUICK, method="maxent") if solver_wins else replace(QUICK, tabular_choice=False)
+    # The probe is the solver that extrapolates nothing: each task alone, on the demonstrations a fold keeps.
+    probed = []
+    for train, held in demonstration_folds([t.trajectories for t in tasks]):
+        kept = [replace(t, trajectories=d) for t, d in zip(tasks, train, strict=True)]
+        probed.append(demonstration_nlls(fit(kept, replace(QUICK, method="maxent")).policies, held)[0])
+    assert len(compared) == 1
+    np.testing.assert_array_equal(compared[0], np.concatenate(probed))
+    expected = replace(QUICK, method="shared_maxent") if solver_wins else replace(QUICK, tabular_choice=False)
     assert result.config == expected
     np.testing.assert_array_equal(result.rewards, fit(tasks, expected).rewards)
 
@@ -136,5 +151,5 @@ def test_the_memory_estimate_of_a_choice_is_the_larger_of_its_two_models() -> No
     sizes = {"n_tasks": 2, "n_states": 400, "n_actions": 4, "n_features": None, "n_steps": 200, "n_mdps": 1}
     both = fit_memory(FitConfig(), **sizes).total  # type: ignore[arg-type]
     networks = fit_memory(FitConfig(tabular_choice=False), **sizes).total  # type: ignore[arg-type]
-    solver = fit_memory(FitConfig(method="maxent"), **sizes).total  # type: ignore[arg-type]
+    solver = fit_memory(FitConfig(method="shared_maxent"), **sizes).total  # type: ignore[arg-type]
     assert both == max(networks, solver)

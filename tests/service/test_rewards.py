@@ -212,6 +212,22 @@ def test_the_baseline_says_how_to_read_it_where_that_needs_saying(
         config={"sharing": "none"},
     )
     assert "mean of the task rewards" in baseline(unshared["job_id"])["note"]
+    # The tabular methods: maxent learns no baseline whatever the sharing, shared_maxent always learns one.
+    for config, averaged in (
+        ({"method": "maxent"}, True),
+        ({"method": "shared_maxent", "sharing": "none"}, False),
+    ):
+        tabular = fitted_job(
+            app,
+            client,
+            auth,
+            mdp=grid(client, auth),
+            demonstrations={"walk right": RIGHT},
+            rewards=random_rewards(2, N_STATES),
+            demonstrator=f"by {config['method']}",
+            config=config,
+        )
+        assert (baseline(tabular["job_id"])["note"] is not None) is averaged
     velocity = grid(client, auth, width=3, height=3, moves=8, velocity=True)
     moving = fitted_job(
         app,

@@ -1370,7 +1370,7 @@ function renderRun(job, previous) {
 
 const SHRINKAGE_TITLE = "Each task reward is the baseline + λ·S_q(the task's learned reward − the baseline), S_q setting the smallest share q of the deviations to zero; λ and q chosen by held-out likelihood (config shrink_deviations)";
 
-// The λ that pulled a job's task rewards toward the baseline, in words ("–" before success and with maxent).
+// The λ that pulled a job's task rewards toward the baseline, in words ("–" before success and with the tabular methods).
 function shrinkageText(shrinkage) {
   if (shrinkage === null || shrinkage === undefined) return "–";
   const pulled = { 0: "every task reward is the baseline", 0.25: "task rewards pulled three quarters of the way to the baseline", 0.5: "task rewards pulled half-way to the baseline", 0.75: "task rewards pulled a quarter of the way to the baseline", 1: "deviations from the baseline kept at full size" }[shrinkage];
