@@ -115,6 +115,15 @@ def ended_by_choice(trajectories: Sequence[Trajectory]) -> np.ndarray:
     return has_end & ((lengths < lengths.max()) | shared_end)
 
 
+def chosen_ends(trajectories: Sequence[Trajectory]) -> np.ndarray:
+    """The distinct final states of the demonstrations that `ended_by_choice`: (E,) int64. A stop by choice
+    says where the task itself wants to be, its goal."""
+    chosen = ended_by_choice(trajectories)
+    return np.unique([int(t.states[-1]) for t, c in zip(trajectories, chosen, strict=True) if c]).astype(
+        np.int64
+    )
+
+
 def with_stays_at_ends(trajectories: Sequence[Trajectory], stay: np.ndarray) -> list[Trajectory]:
     """The task's demonstrations, each that `ended_by_choice` one step longer: the stay action at its final
     state (``stay``: `planning.stay_actions`, -1 where there is none: nothing added).

@@ -31,7 +31,7 @@ import scipy.sparse as sp
 from scipy.optimize import minimize
 
 from metairl_engine.config import FitConfig
-from metairl_engine.demos import ended_by_choice, state_action_pairs, with_stays_at_ends
+from metairl_engine.demos import chosen_ends, state_action_pairs, with_stays_at_ends
 from metairl_engine.errors import Cancelled
 from metairl_engine.mdp import MDP
 from metairl_engine.planning import policy_matrix, stay_actions, transition_matrix, value_iteration
@@ -167,7 +167,7 @@ class _SharedObjective:
     def __init__(self, tasks: Sequence[TaskData], objectives: Sequence[_TaskObjective]):
         self.objectives = objectives
         self.n_states = tasks[0].mdp.n_states
-        ends = [_chosen_ends(t) for t in tasks]
+        ends = [chosen_ends(t.trajectories) for t in tasks]
         self.bonus_task = np.repeat(np.arange(len(tasks)), [len(e) for e in ends])
         self.bonus_state = np.concatenate(ends)
         self.loss = self.nll = 0.0
@@ -192,14 +192,6 @@ class _SharedObjective:
         self.loss = self.nll + 0.5 * RIDGE * float(x @ x)
         gradient = np.concatenate([gradients.sum(axis=0), gradients[self.bonus_task, self.bonus_state]])
         return self.loss, gradient + RIDGE * x
-
-
-def _chosen_ends(task: TaskData) -> np.ndarray:
-    """The distinct final states of the task's demonstrations that `ended_by_choice`: (E,) int64."""
-    chosen = ended_by_choice(task.trajectories)
-    return np.unique([int(t.states[-1]) for t, c in zip(task.trajectories, chosen, strict=True) if c]).astype(
-        np.int64
-    )
 
 
 def _discounted_solve(

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from metairl_engine import FitConfig, Trajectory
-from metairl_engine.demos import ended_by_choice, with_stays_at_ends
+from metairl_engine.demos import chosen_ends, ended_by_choice, with_stays_at_ends
 from metairl_engine.fit import _Problem, fit
 from metairl_engine.grids import grid_mdp
 from metairl_engine.planning import stay_actions
@@ -55,6 +55,7 @@ def test_a_shorter_demonstration_or_one_ending_where_another_ends_stopped_by_cho
         Trajectory.of([7], [0]),  # shorter, but no final state: nothing known of its end
     ]
     assert ended_by_choice(demos).tolist() == [False, True, True, False]
+    assert chosen_ends(demos).tolist() == [6]  # the two stops at 6 name one state
 
 
 def test_a_stopped_demonstration_gains_the_stay_step_at_its_end_and_the_others_are_kept() -> None:
