@@ -14,10 +14,11 @@ A small ridge ``RIDGE/2·‖r‖²`` makes unvisited states' rewards 0 instead o
 ``method="shared_maxent"`` is reward sharing in the tabular solver: every task's reward is one shared reward
 r_b plus, at the final states of the task's demonstrations that `ended_by_choice`, a bonus of its own,
 
-    r_i = r_b + Σ_e u_(i,e)·1[s = e],   minimise Σ_i NLL_i(r_i)/N_i + RIDGE/2·(‖r_b‖² + ‖u‖²),
+    r_i = r_b + Σ_e u_(i,e)·1[s = e],   minimise Σ_i NLL_i(r_i)/N_i + RIDGE/2·‖r_b‖² + BONUS_RIDGE/2·‖u‖²,
 
 so a state any task's demonstrations pass gets its reward from all of them, and only where a demonstration
 stopped because it was done (its goal) may a task's reward depart from the others'. The ``baseline`` is r_b.
+A stop says where the task itself wants to be, so its bonus carries the goal (`BONUS_RIDGE`).
 """
 
 from __future__ import annotations
@@ -39,6 +40,12 @@ from metairl_engine.results import FitResult, Progress, TaskData
 
 RIDGE = 1e-3
 """Weight of the ridge penalty on the tabular reward (per state, relative to the mean NLL per step)."""
+
+BONUS_RIDGE = RIDGE / 100
+"""Ridge on ``shared_maxent``'s bonuses u. At a task's goal only r_b + u is evidenced, and a MAP splits it in
+proportion to the priors' variances: equal ridges would put half of every goal into the shared reward, where
+every other task's policy is drawn to it (docs/method.md, "The tabular solvers"); a prior 100 times wider on
+the bonuses leaves the shared reward about 1 % of a goal."""
 
 
 def fit_maxent(
@@ -161,7 +168,7 @@ class _TaskObjective:
 
 
 class _SharedObjective:
-    """Σ_i mean NLL_i + ridge of ``shared_maxent`` and its gradient, as a function of x = (r_b (S,), u (K,)):
+    """Σ_i mean NLL_i + ridges of ``shared_maxent`` and its gradient, as a function of x = (r_b (S,), u (K,)):
     the shared reward and the K bonuses, one per task and final state its demonstrations ended at by choice."""
 
     def __init__(self, tasks: Sequence[TaskData], objectives: Sequence[_TaskObjective]):
@@ -170,6 +177,9 @@ class _SharedObjective:
         ends = [chosen_ends(t.trajectories) for t in tasks]
         self.bonus_task = np.repeat(np.arange(len(tasks)), [len(e) for e in ends])
         self.bonus_state = np.concatenate(ends)
+        self.ridge = np.concatenate(
+            [np.full(self.n_states, RIDGE), np.full(len(self.bonus_state), BONUS_RIDGE)]
+        )
         self.loss = self.nll = 0.0
 
     def start(self) -> np.ndarray:
@@ -189,9 +199,9 @@ class _SharedObjective:
         terms = [o.likelihood(r) for o, r in zip(self.objectives, rewards, strict=True)]
         gradients = np.asarray([g for _, g in terms])
         self.nll = float(sum(nll for nll, _ in terms))  # summed over the tasks
-        self.loss = self.nll + 0.5 * RIDGE * float(x @ x)
+        self.loss = self.nll + 0.5 * float(self.ridge @ (x * x))
         gradient = np.concatenate([gradients.sum(axis=0), gradients[self.bonus_task, self.bonus_state]])
-        return self.loss, gradient + RIDGE * x
+        return self.loss, gradient + self.ridge * x
 
 
 def _discounted_solve(

@@ -78,6 +78,16 @@ def test_shared_task_rewards_depart_from_the_baseline_only_where_their_demonstra
     assert not np.allclose(result.baseline, result.rewards.mean(axis=0))  # a reward of its own, not a mean
 
 
+def test_each_goal_is_carried_by_its_tasks_bonus_not_the_shared_reward() -> None:
+    """Where a task stopped, the shared reward stands near its median: another task's policy is not drawn to a
+    goal that is not its own (equal ridges would give the shared reward 37 … 51 % of each goal here)."""
+    sims, _ = goal_tasks(n_tasks=3, n_demos=4, seed=2)
+    result = fit(as_tasks(sims), FitConfig(method="shared_maxent"))
+    for sim, reward in zip(sims, result.rewards, strict=True):
+        shared = result.baseline[sim.goal] - np.median(result.baseline)
+        assert abs(shared) < 0.1 * (reward[sim.goal] - np.median(result.baseline))
+
+
 def test_sharing_gives_each_task_the_others_evidence() -> None:
     """With two demonstrations per task, each task's reward (its goal left out) is nearer the shared truth when
     every task's demonstrations inform it than from its own alone."""
