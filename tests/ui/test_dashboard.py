@@ -224,11 +224,15 @@ def test_dashboard_follows_a_real_job_from_queued_to_succeeded_and_shows_its_rew
         "() => { const imgs = [...document.querySelectorAll('#heatmaps img[data-reward]')];"
         " return imgs.length === 3 && imgs.every(i => i.complete && i.naturalWidth > 0); }"
     )
-    # Beside each reward, the spread of the ensemble's members (a small fit has several).
-    page.wait_for_function(
-        "() => { const imgs = [...document.querySelectorAll(\"#heatmaps [data-role='uncertainty'] img\")];"
-        " return imgs.length === 3 && imgs.every(i => i.complete && i.naturalWidth > 0); }"
-    )
+    # Beside each reward, the spread of the ensemble's members (a small fit has several) and the evidence.
+    for quantity in ("uncertainty", "evidence"):
+        page.wait_for_function(
+            f"() => {{ const imgs = [...document.querySelectorAll(\"#heatmaps [data-role='{quantity}'] img\")];"
+            " return imgs.length === 3 && imgs.every(i => i.complete && i.naturalWidth > 0); }"
+        )
+    assert page.locator("#heatmaps figure").first.locator(".beside").evaluate_all(
+        "boxes => boxes.map(b => b.dataset.role)"
+    ) == ["uncertainty", "evidence"]
     kinds = page.locator("#heatmaps figure").evaluate_all("fs => fs.map(f => f.dataset.rewardKind)")
     assert kinds == ["baseline", "task", "task"]
     assert page.locator("#heatmaps img").first.evaluate("img => img.src.startsWith('blob:')")

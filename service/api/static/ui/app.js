@@ -562,6 +562,12 @@ async function showResults(id, { scroll = false } = {}) {
   }
 }
 
+// Per-state quantities drawn beside each reward when its links name them, with how to read each.
+const BESIDE_REWARD = [
+  ["uncertainty", "spread across the ensemble's members: how far a refit moves it (not its error)"],
+  ["evidence", "evidence: on a demonstrated path (yellow), one move off (teal), elsewhere (purple)"],
+];
+
 function renderHeatmaps(rewards, current) {
   const layout = rewards.tasks.length ? layoutOfTask(rewards.tasks[0].task_id) : null;
   const cards = [rewards.baseline, ...rewards.tasks].map((reward) => {
@@ -570,15 +576,15 @@ function renderHeatmaps(rewards, current) {
     const picture = reward.links.png
       ? el("img", { alt: `heatmap of ${title}`, "data-reward": reward.reward_id })
       : el("div", { class: "nopic" }, "No layout on this MDP, so no heatmap (download JSON or CSV).");
-    // Beside the reward, how much the ensemble's members disagree on it per state: where it is least sure.
-    const spread = reward.links.uncertainty_png
-      ? el(
-          "div",
-          { class: "uncertainty", "data-role": "uncertainty" },
-          el("img", { alt: `uncertainty of ${title}`, "data-uncertainty": reward.reward_id }),
-          el("span", { class: "stats" }, "spread across the ensemble's members (higher: less sure)"),
-        )
-      : null;
+    // Beside the reward, what it rests on: how far its ensemble's members disagree, and where demonstrations pass.
+    const beside = BESIDE_REWARD.filter(([quantity]) => reward.links[`${quantity}_png`]).map(([quantity, caption]) =>
+      el(
+        "div",
+        { class: "beside", "data-role": quantity },
+        el("img", { alt: `${quantity} of ${title}`, "data-quantity": quantity }),
+        el("span", { class: "stats" }, caption),
+      ),
+    );
     const card = el(
       "figure",
       { class: `heatmap ${reward.kind}`, "data-reward-kind": reward.kind },
@@ -592,7 +598,7 @@ function renderHeatmaps(rewards, current) {
       ),
       // How to read this reward, where the API says it needs saying (a velocity-grid baseline, sharing none).
       reward.note ? el("details", { class: "note", "data-role": "note" }, el("summary", {}, "How to read this baseline"), reward.note) : null,
-      spread,
+      beside.length ? el("div", { class: "beside-row" }, ...beside) : null,
     );
     if (reward.links.png) {
       picture.classList.add("zoomable");
@@ -600,7 +606,9 @@ function renderHeatmaps(rewards, current) {
       picture.addEventListener("click", () => openLightbox(picture.src, title, layout && layout.channels > 1 ? { reward, layout } : null));
       loadImage(picture, "results", current, reward.links.png);
     }
-    if (spread) loadImage(spread.querySelector("img"), "results", current, reward.links.uncertainty_png);
+    for (const box of beside) {
+      loadImage(box.querySelector("img"), "results", current, reward.links[`${box.dataset.role}_png`]);
+    }
     return card;
   });
   $("heatmaps").replaceChildren(...cards);
