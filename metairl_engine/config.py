@@ -155,11 +155,10 @@ class FitConfig:
     networks extrapolate a wrong trend over every state no demonstration reaches, while the solver leaves
     them at 0. Each task's demonstrations are split into up to three folds, each held out once
     (`holdout.demonstration_folds`), and in each the networks and the solver each task alone (``maxent``,
-    which extrapolates nothing) are fitted on the rest; where the solver's policies predict the held-out
-    demonstrations better by more than one standard error, counted per demonstration
-    (`holdout.beats_by_standard_error`), ``shared_maxent`` is fitted on every demonstration, else the
-    networks are refitted. The choice is the result's ``config`` (``method``, or this set to False), so
-    refitting with it gives the same result. Costs up to six extra fits on such MDPs (three of them the
+    which extrapolates nothing) are fitted on the rest; where the solver's policies give the held-out
+    demonstrations the higher likelihood (`holdout.predicts_better`: neither extrapolation is the default),
+    ``shared_maxent`` is fitted on every demonstration, else the networks are refitted. The choice is the
+    result's ``config`` (``method``, or this set to False), so refitting with it gives the same result. Costs up to six extra fits on such MDPs (three of them the
     quick solver's), none elsewhere (docs/method.md, "MDPs without features")."""
 
     backup: Backup = "max"

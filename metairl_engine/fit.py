@@ -41,9 +41,9 @@ from metairl_engine.errors import Cancelled, InvalidInput, Issue, check
 from metairl_engine.evidence import NEXT_TO_VISITED
 from metairl_engine.holdout import (
     Steps,
-    beats_by_standard_error,
     demonstration_folds,
     demonstration_nlls,
+    predicts_better,
     repeats_its_decisions,
     split_steps,
 )
@@ -114,8 +114,7 @@ def _fit_choosing_method(
 ) -> FitResult:
     """`FitConfig.tabular_choice`: in each fold of the demonstrations (`demonstration_folds`: every one held
     out once), fit the networks and the ``maxent`` solver on the rest; where the solver predicts the held-out
-    demonstrations better by more than one standard error, fit ``shared_maxent`` on every demonstration, else
-    refit the networks. The probe is the solver that extrapolates nothing, each task alone: the question is
+    demonstrations better, fit ``shared_maxent`` on every demonstration, else refit the networks. The probe is the solver that extrapolates nothing, each task alone: the question is
     whether the coordinates' extrapolation predicts where new demonstrations go, and the answer keeps the
     sharing the config asks for. Progress runs over the 2K + 1 fits."""
     from metairl_engine.maxent import fit_maxent
@@ -136,21 +135,17 @@ def _fit_choosing_method(
 
         return report
 
-    networks_nll, solver_nll, lengths = [], [], []
+    networks_nll, solver_nll = [], []
     for k, (train, held) in enumerate(folds):
         train_tasks = [replace(t, trajectories=demos) for t, demos in zip(tasks, train, strict=True)]
         learned = _fit_choosing_task_inputs(
             train_tasks, networks, progress=stage(2 * k), should_stop=should_stop, device=device
         )
         tabular = fit_maxent(train_tasks, probe, progress=stage(2 * k + 1), should_stop=should_stop)
-        nll, length = demonstration_nlls(learned.policies, held)
-        networks_nll.append(nll)
-        lengths.append(length)
-        solver_nll.append(demonstration_nlls(tabular.policies, held)[0])
+        networks_nll.append(demonstration_nlls(learned.policies, held))
+        solver_nll.append(demonstration_nlls(tabular.policies, held))
     last = stage(n_stages - 1)
-    if beats_by_standard_error(
-        np.concatenate(solver_nll), np.concatenate(networks_nll), np.concatenate(lengths)
-    ):
+    if predicts_better(np.concatenate(solver_nll), np.concatenate(networks_nll)):
         shared = replace(config, method="shared_maxent")
         return fit_maxent(tasks, shared, progress=last, should_stop=should_stop)
     return _fit_choosing_task_inputs(tasks, networks, progress=last, should_stop=should_stop, device=device)

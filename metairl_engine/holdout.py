@@ -116,31 +116,19 @@ def demonstration_folds(
     ]
 
 
-def demonstration_nlls(
-    policies: np.ndarray, held: Sequence[Sequence[Trajectory]]
-) -> tuple[np.ndarray, np.ndarray]:
+def demonstration_nlls(policies: np.ndarray, held: Sequence[Sequence[Trajectory]]) -> np.ndarray:
     """Per held-out demonstration (tasks in order): the NLL of its actions under its task's policy
-    (T, S, A), summed over its steps, and its number of steps; two (N,) arrays."""
-    totals, lengths = [], []
-    for policy, trajectories in zip(policies, held, strict=True):
-        for tr in trajectories:
-            states, actions = state_action_pairs([tr])
-            totals.append(float(-np.log(np.maximum(policy[states, actions], 1e-12)).sum()))
-            lengths.append(len(actions))
-    return np.asarray(totals), np.asarray(lengths, dtype=np.float64)
+    (T, S, A), summed over its steps; an (N,) array."""
+    return np.asarray(
+        [
+            float(-np.log(np.maximum(policy[states, actions], 1e-12)).sum())
+            for policy, trajectories in zip(policies, held, strict=True)
+            for states, actions in (state_action_pairs([tr]) for tr in trajectories)
+        ]
+    )
 
 
-def beats_by_standard_error(challenger: np.ndarray, incumbent: np.ndarray, lengths: np.ndarray) -> bool:
-    """True if the challenger's NLL per held-out step is below the incumbent's by more than one standard
-    error of the difference, with held-out demonstrations as the independent units (steps of one demonstration
-    are not: a policy that sends one demonstration the wrong way mispredicts all its steps).
-
-    The difference per step is the ratio Σ d_j / Σ n_j of per-demonstration sums d_j over their lengths n_j;
-    its standard error is the ratio estimator's, √(N/(N−1)·Σ(d_j − m·n_j)²) / Σ n_j."""
-    d = challenger - incumbent
-    n = len(d)
-    if n < 2:
-        return False
-    mean = d.sum() / lengths.sum()
-    standard_error = float(np.sqrt(n / (n - 1) * np.sum((d - mean * lengths) ** 2)) / lengths.sum())
-    return bool(-mean > standard_error)
+def predicts_better(challenger: np.ndarray, incumbent: np.ndarray) -> bool:
+    """True if the challenger's policies give the held-out demonstrations (the same ones, per demonstration
+    NLLs) a higher likelihood than the incumbent's: neither model is preferred on a tie of evidence."""
+    return bool(challenger.sum() < incumbent.sum())

@@ -13,7 +13,7 @@ import pytest
 from metairl_engine import MDP, FitConfig, TaskData
 from metairl_engine.demos import Trajectory
 from metairl_engine.fit import fit, tabular_choice_applies
-from metairl_engine.holdout import beats_by_standard_error, demonstration_folds, demonstration_nlls
+from metairl_engine.holdout import demonstration_folds, demonstration_nlls, predicts_better
 from metairl_engine.memory import fit_memory
 from metairl_engine.sim.terrain import make_tasks, make_world
 
@@ -55,23 +55,16 @@ def test_every_demonstration_is_held_out_once_in_as_many_folds_as_the_fewest_all
 
 def test_demonstration_nlls_sum_each_held_out_demonstration_s_steps_under_its_task_s_policy() -> None:
     policies = np.array([[[0.5, 0.5], [0.25, 0.75]], [[0.1, 0.9], [1.0, 0.0]]])  # (T=2, S=2, A=2)
-    totals, lengths = demonstration_nlls(policies, [[walk(0, 1, 1)], [walk(1, 0), walk(0, 0)]])
+    totals = demonstration_nlls(policies, [[walk(0, 1, 1)], [walk(1, 0), walk(0, 0)]])
     np.testing.assert_allclose(totals, [-np.log(0.5) - np.log(0.25), -np.log(1.0), -np.log(0.1)])
-    np.testing.assert_array_equal(lengths, [2, 1, 1])
 
 
-def test_the_solver_wins_only_by_more_than_one_standard_error_counted_per_demonstration() -> None:
-    lengths = np.array([10.0, 10.0, 10.0, 10.0])
+def test_the_solver_is_chosen_when_it_predicts_the_held_out_demonstrations_better_by_any_margin() -> None:
     incumbent = np.array([20.0, 20.0, 20.0, 20.0])
-    spread = np.array([-1.0, 1.0, -1.0, 1.0])  # per-demonstration differences around their mean
-    standard_error = float(np.sqrt(4 / 3 * np.sum(spread**2)) / lengths.sum())
-    assert beats_by_standard_error(incumbent + spread - 1.01 * standard_error * lengths, incumbent, lengths)
-    assert not beats_by_standard_error(
-        incumbent + spread - 0.99 * standard_error * lengths, incumbent, lengths
-    )
-    assert not beats_by_standard_error(
-        incumbent[:1] - 5, incumbent[:1], lengths[:1]
-    )  # one demonstration: no error
+    assert predicts_better(incumbent + np.array([-1.0, 1.0, -1.0, 0.99]), incumbent)
+    tie = incumbent + np.array([-1.0, 1.0, -1.0, 1.0])
+    assert not predicts_better(tie, incumbent)  # a tie keeps the networks
+    assert not predicts_better(incumbent + 0.01, incumbent)
 
 
 def test_the_choice_is_the_result_s_config_and_refitting_with_it_gives_the_same_result() -> None:
@@ -127,19 +120,19 @@ def test_the_model_that_predicts_the_held_out_demonstrations_is_refitted_on_all(
 ) -> None:
     compared: list[np.ndarray] = []
 
-    def verdict(challenger: np.ndarray, incumbent: np.ndarray, lengths: np.ndarray) -> bool:
+    def verdict(challenger: np.ndarray, incumbent: np.ndarray) -> bool:
         compared.append(challenger)
         assert len(challenger) == len(incumbent) == 9  # every demonstration of the 3 tasks, under both
         return solver_wins
 
-    monkeypatch.setattr("metairl_engine.fit.beats_by_standard_error", verdict)
+    monkeypatch.setattr("metairl_engine.fit.predicts_better", verdict)
     tasks = terrain_tasks()
     result = fit(tasks, QUICK)
     # The probe is the solver that extrapolates nothing: each task alone, on the demonstrations a fold keeps.
     probed = []
     for train, held in demonstration_folds([t.trajectories for t in tasks]):
         kept = [replace(t, trajectories=d) for t, d in zip(tasks, train, strict=True)]
-        probed.append(demonstration_nlls(fit(kept, replace(QUICK, method="maxent")).policies, held)[0])
+        probed.append(demonstration_nlls(fit(kept, replace(QUICK, method="maxent")).policies, held))
     assert len(compared) == 1
     np.testing.assert_array_equal(compared[0], np.concatenate(probed))
     expected = replace(QUICK, method="shared_maxent") if solver_wins else replace(QUICK, tabular_choice=False)
