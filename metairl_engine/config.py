@@ -158,8 +158,9 @@ class FitConfig:
     which extrapolates nothing) are fitted on the rest; where the solver's policies give the held-out
     demonstrations the higher likelihood (`holdout.predicts_better`: neither extrapolation is the default),
     ``shared_maxent`` is fitted on every demonstration, else the networks are refitted. The choice is the
-    result's ``config`` (``method``, or this set to False), so refitting with it gives the same result. Costs up to six extra fits on such MDPs (three of them the
-    quick solver's), none elsewhere (docs/method.md, "MDPs without features")."""
+    result's ``config`` (``method``, or this set to False), so refitting with it gives the same result. Costs
+    up to six extra fits on such MDPs (three of them the quick solver's), none elsewhere (docs/method.md, "MDPs
+    without features")."""
 
     backup: Backup = "max"
     """Bellman backup V(s) from Q(s, ·): max (paper eq. 7), logsumexp (MaxEnt) or BGI's (1/k)·logsumexp(k·Q)."""

@@ -119,13 +119,12 @@ def demonstration_folds(
 def demonstration_nlls(policies: np.ndarray, held: Sequence[Sequence[Trajectory]]) -> np.ndarray:
     """Per held-out demonstration (tasks in order): the NLL of its actions under its task's policy
     (T, S, A), summed over its steps; an (N,) array."""
-    return np.asarray(
-        [
-            float(-np.log(np.maximum(policy[states, actions], 1e-12)).sum())
-            for policy, trajectories in zip(policies, held, strict=True)
-            for states, actions in (state_action_pairs([tr]) for tr in trajectories)
-        ]
-    )
+    totals = []
+    for policy, trajectories in zip(policies, held, strict=True):
+        for tr in trajectories:
+            states, actions = state_action_pairs([tr])
+            totals.append(float(-np.log(np.maximum(policy[states, actions], 1e-12)).sum()))
+    return np.asarray(totals)
 
 
 def predicts_better(challenger: np.ndarray, incumbent: np.ndarray) -> bool:

@@ -581,7 +581,7 @@ function renderHeatmaps(rewards, current) {
       el(
         "div",
         { class: "beside", "data-role": quantity },
-        el("img", { alt: `${quantity} of ${title}`, "data-quantity": quantity }),
+        el("img", { alt: `${quantity} of ${title}` }),
         el("span", { class: "stats" }, caption),
       ),
     );
