@@ -9,6 +9,8 @@ written through the store layer, as the worker would), then runs ``wrk`` against
 - ``GET /healthz`` (no database),
 - ``GET /v1/jobs/{id}`` with a key (8 and 32 connections),
 - ``GET /v1/rewards/{id}?format=npy`` (320 kB of float32),
+- ``GET /v1/jobs/{id}/history`` with the longest loss curve a fit keeps (`HISTORY_STEPS` steps, as the
+  worker stores it; about 17 MB of JSON per answer),
 
 three times each, and prints a markdown table of the medians (req/s, p50, p99) with the load average
 before each backend, the API worker RSS after the load, and the versions. Usage::
@@ -51,6 +53,8 @@ from benchmarks.provenance import provenance
 ROOT = Path(__file__).resolve().parents[1]
 
 N_STATES = 80_000
+HISTORY_STEPS = 100_000
+"""Steps of the seeded job's loss curve: the most a fit may run (`FitConfig.max_steps`' upper bound)."""
 PACKAGES = ("uvicorn", "uvloop", "httptools", "fastapi", "starlette", "sqlalchemy", "psycopg")
 
 
@@ -128,6 +132,7 @@ def main() -> int:
                 Target("GET /v1/jobs/{id}", f"/v1/jobs/{job_id}", 8),
                 Target("GET /v1/jobs/{id}", f"/v1/jobs/{job_id}", 32),
                 Target("GET /v1/rewards/{id}?format=npy", f"/v1/rewards/{reward_id}?format=npy", 32),
+                Target("GET /v1/jobs/{id}/history", f"/v1/jobs/{job_id}/history", 2),
             ]
             if args.malloc_arena_max:
                 env["MALLOC_ARENA_MAX"] = str(args.malloc_arena_max)
@@ -220,14 +225,19 @@ def database(backend: str, admin_url: str, *, label: str = "load") -> Iterator[t
 
 
 def seed(url: str, data_dir: Path) -> tuple[str, str, str]:
-    """A lab's key, a succeeded job and its 80,000-state baseline reward, through the API and the store layer."""
+    """A lab's key, a succeeded job with its 80,000-state baseline reward and its longest loss curve.
+
+    Written through the API and the store layer, as a client and the worker would.
+    """
     import numpy as np
     from fastapi.testclient import TestClient
     from sqlalchemy.orm import Session
 
+    from metairl_engine.results import Progress
     from service.api.app import create_app
     from service.results.rewards import add_reward
     from service.settings import Settings
+    from service.store.histories import add_step_history
     from service.store.ids import new_id
     from service.store.keys import add_key
     from service.store.models.job_status import JobStatus
@@ -266,6 +276,20 @@ def seed(url: str, data_dir: Path) -> tuple[str, str, str]:
         session.flush()
         values = np.random.default_rng(0).normal(size=N_STATES).astype(np.float32)
         reward = add_reward(session, job, ordinal=0, n_actions=mdp["n_actions"], reward=values)
+        # Losses falling as 1/step, a held-out NLL and elapsed time: numbers of every kind a fit reports.
+        steps = [
+            Progress(
+                step,
+                HISTORY_STEPS,
+                2 / (step + 0.37),
+                1.7 / (step + 0.37),
+                0.3 / (step + 0.37),
+                1 + 1 / step,
+                0.013 * step,
+            )
+            for step in range(1, HISTORY_STEPS + 1)
+        ]
+        add_step_history(session, job.id, job.attempts, steps)
         session.commit()
         job_id, reward_id = job.id, reward.id
     app.state.engine.dispose()

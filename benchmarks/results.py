@@ -257,7 +257,8 @@ def load_section() -> list[str]:
     out += [
         "`uvicorn --factory service.api.app:create_app --workers 2` on loopback against PostgreSQL with Redis "
         "(`postgres`) and the embedded SQLite with the `filesystem://` broker (`sqlite`); a lab, its key and a "
-        "succeeded job with an 80,000-value baseline reward; `wrk -t2`, medians of 3 runs of 5 s.",
+        "succeeded job with an 80,000-value baseline reward and a 100,000-step loss curve (the longest a fit "
+        "keeps); `wrk -t2`, medians of 3 runs of 5 s.",
         "",
         *provenance_lines([stored["provenance"]], [stored["provenance"]["command"]]),
         "",
