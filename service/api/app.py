@@ -110,25 +110,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(InputGuard)  # a NUL or too-deep JSON never reaches the key's record or the database
     app.add_middleware(BodySizeLimit, settings=settings)
     app.add_middleware(RateLimit, settings=settings)  # outermost: a refusal costs no body and no database
-    for module in (
-        mdps,
-        demonstrators,
-        tasks,
-        demonstrations,
-        recordings,
-        jobs,
-        rewards,
-        comparisons,
-        motion,
-        sway,
-        webhooks,
-    ):
-        app.include_router(module.router, prefix="/v1")
 
-    app.include_router(ui.router)  # GET /ui: the dashboard (not in the OpenAPI document)
-    install_openapi(app)
-    install_docs(app)
-
+    # The probes first: the router tries routes in order, and an orchestrator polls them most often.
     @app.get("/healthz", tags=["health"], summary="The process is up", responses=_example({"status": "ok"}))
     async def healthz() -> JSONResponse:
         """Liveness: answers while the process runs (on the event loop: no thread, no validation)."""
@@ -152,6 +135,25 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                 status_code=503,
             )
         return JSONResponse({"status": "ok"})
+
+    for module in (
+        mdps,
+        demonstrators,
+        tasks,
+        demonstrations,
+        recordings,
+        jobs,
+        rewards,
+        comparisons,
+        motion,
+        sway,
+        webhooks,
+    ):
+        app.include_router(module.router, prefix="/v1")
+
+    app.include_router(ui.router)  # GET /ui: the dashboard (not in the OpenAPI document)
+    install_openapi(app)
+    install_docs(app)
 
     return app
 
