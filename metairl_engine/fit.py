@@ -116,7 +116,8 @@ def _fit_choosing_method(
     out once), fit the networks and the ``maxent`` solver on the rest; where the solver predicts the held-out
     demonstrations better, fit ``shared_maxent`` on every demonstration, else refit the networks. The probe is
     the solver that extrapolates nothing, each task alone: the question is whether the coordinates'
-    extrapolation predicts where new demonstrations go, and the answer keeps the sharing the config asks for. Progress runs over the 2K + 1 fits."""
+    extrapolation predicts where new demonstrations go, and the answer keeps the sharing the config asks for.
+    Progress runs over the 2K + 1 fits."""
     from metairl_engine.maxent import fit_maxent
 
     folds = demonstration_folds([t.trajectories for t in tasks])
