@@ -156,7 +156,8 @@ class FitConfig:
     them at 0. Each task's demonstrations are split into up to three folds, each held out once
     (`holdout.demonstration_folds`), and in each the networks and the solver each task alone (``maxent``,
     which extrapolates nothing) are fitted on the rest; where the solver's policies give the held-out
-    demonstrations the higher likelihood (`holdout.predicts_better`: neither extrapolation is the default),
+    demonstrations the higher likelihood (each with its stay where it ended by choice, as `stay_at_ends` has
+    the fits count it; `holdout.predicts_better`: neither extrapolation is the default),
     ``shared_maxent`` is fitted on every demonstration, else the networks are refitted. The choice is the
     result's ``config`` (``method``, or this set to False), so refitting with it gives the same result. Costs
     up to six extra fits on such MDPs (three of them the quick solver's), none elsewhere (docs/method.md, "MDPs

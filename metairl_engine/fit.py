@@ -117,10 +117,16 @@ def _fit_choosing_method(
     demonstrations better, fit ``shared_maxent`` on every demonstration, else refit the networks. The probe is
     the solver that extrapolates nothing, each task alone: the question is whether the coordinates'
     extrapolation predicts where new demonstrations go, and the answer keeps the sharing the config asks for.
-    Progress runs over the 2K + 1 fits."""
+    With `FitConfig.stay_at_ends` a held-out demonstration that ended by choice is scored with its stay, as
+    the fits count it, so a model whose policy walks away from where the demonstrations stop is charged for
+    it. Progress runs over the 2K + 1 fits."""
     from metairl_engine.maxent import fit_maxent
 
-    folds = demonstration_folds([t.trajectories for t in tasks])
+    stays = None
+    if config.stay_at_ends:
+        per_mdp = {key: stay_actions(mdp) for key, mdp in {id(t.mdp): t.mdp for t in tasks}.items()}
+        stays = [per_mdp[id(t.mdp)] for t in tasks]
+    folds = demonstration_folds([t.trajectories for t in tasks], stays=stays)
     networks, probe = replace(config, tabular_choice=False), replace(config, method="maxent")
     n_stages = 2 * len(folds) + 1
 

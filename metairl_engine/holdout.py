@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from metairl_engine.demos import Trajectory, state_action_pairs
+from metairl_engine.demos import Trajectory, state_action_pairs, with_stays_at_ends
 
 
 @dataclass(frozen=True)
@@ -100,17 +100,27 @@ DEMONSTRATION_FOLDS = 3
 
 def demonstration_folds(
     demonstrations: Sequence[Sequence[Trajectory]],
+    *,
+    stays: Sequence[np.ndarray] | None = None,
 ) -> list[tuple[list[list[Trajectory]], list[list[Trajectory]]]]:
     """(train, held-out) demonstrations per task, for each of K = min(3, fewest per task) folds: fold k holds
     out each task's demonstrations i with i mod K = k, so every demonstration is held out exactly once.
 
     Whole demonstrations, not steps: a held-out demonstration starts where the training ones may not have
-    gone, so its likelihood tests how a reward extrapolates off the demonstrations. Needs ≥ 2 per task."""
+    gone, so its likelihood tests how a reward extrapolates off the demonstrations. Needs ≥ 2 per task.
+    ``stays`` (per task, `planning.stay_actions` of its MDP): a held-out demonstration that ended by choice
+    among all its task's demonstrations is scored with its stay (`demos.with_stays_at_ends`), the evidence the
+    fits learn from (`FitConfig.stay_at_ends`); the training ones are as given, for a fit adds its own."""
     n_folds = min(DEMONSTRATION_FOLDS, min(len(t) for t in demonstrations))
+    scored = (
+        demonstrations
+        if stays is None
+        else [with_stays_at_ends(t, stay) for t, stay in zip(demonstrations, stays, strict=True)]
+    )
     return [
         (
             [[tr for i, tr in enumerate(t) if i % n_folds != k] for t in demonstrations],
-            [[tr for i, tr in enumerate(t) if i % n_folds == k] for t in demonstrations],
+            [[tr for i, tr in enumerate(t) if i % n_folds == k] for t in scored],
         )
         for k in range(n_folds)
     ]

@@ -15,6 +15,7 @@ from metairl_engine.demos import Trajectory
 from metairl_engine.fit import fit, tabular_choice_applies
 from metairl_engine.holdout import demonstration_folds, demonstration_nlls, predicts_better
 from metairl_engine.memory import fit_memory
+from metairl_engine.planning import stay_actions
 from metairl_engine.sim.terrain import make_tasks, make_world
 
 QUICK = FitConfig(hidden=(16,), max_steps=40, ensemble=2)
@@ -51,6 +52,19 @@ def test_every_demonstration_is_held_out_once_in_as_many_folds_as_the_fewest_all
     two = demonstration_folds([[walk(0, 0), walk(1, 1)], [walk(i, i) for i in range(5)]])
     held_two = [[int(tr.states[0]) for tr in h] for _, fold_held in two for h in fold_held]
     assert held_two == [[0], [0, 2, 4], [1], [1, 3]]
+
+
+def test_a_held_out_demonstration_that_ended_by_choice_is_scored_with_its_stay_and_training_ones_as_given() -> (
+    None
+):
+    # lengths 2, 1, 1: the two shorter ones stopped by choice (at state 1), the longest ran to the end
+    task = [walk(0, 1, 2), walk(0, 1), walk(3, 1)]
+    stay = np.array([-1, 4, 4, -1])  # state s's stay action (none at 0 and 3)
+    folds = demonstration_folds([task], stays=[stay])
+    held = [(fold_held[0][0].states.tolist(), fold_held[0][0].actions.tolist()) for _, fold_held in folds]
+    assert held == [([0, 1, 2], [0, 0]), ([0, 1, 1], [0, 4]), ([3, 1, 1], [0, 4])]
+    for (train, _), (plain, _) in zip(folds, demonstration_folds([task]), strict=True):
+        assert [tr.states.tolist() for tr in train[0]] == [tr.states.tolist() for tr in plain[0]]
 
 
 def test_demonstration_nlls_sum_each_held_out_demonstration_s_steps_under_its_task_s_policy() -> None:
@@ -130,7 +144,8 @@ def test_the_model_that_predicts_the_held_out_demonstrations_is_refitted_on_all(
     result = fit(tasks, QUICK)
     # The probe is the solver that extrapolates nothing: each task alone, on the demonstrations a fold keeps.
     probed = []
-    for train, held in demonstration_folds([t.trajectories for t in tasks]):
+    stays = [stay_actions(t.mdp) for t in tasks]  # each held-out demonstration scored as the fits count it
+    for train, held in demonstration_folds([t.trajectories for t in tasks], stays=stays):
         kept = [replace(t, trajectories=d) for t, d in zip(tasks, train, strict=True)]
         probed.append(demonstration_nlls(fit(kept, replace(QUICK, method="maxent")).policies, held))
     assert len(compared) == 1
