@@ -224,8 +224,11 @@ def not_stored(quantity: Quantity, reward_id: str) -> Conflict:
     if quantity == "uncertainty":
         return Conflict(
             f"Reward {reward_id} has no uncertainty: its fit ran a single ensemble member (a tabular method, "
-            "config ensemble 1, or a large fit's automatic choice), so there is no spread across members, or "
-            "it was stored before the spread was kept. Rerun the job with config ensemble ≥ 2 to get one."
+            "among them the shared solver that config tabular_choice picks for an MDP without features where it "
+            "predicts held-out demonstrations better; config ensemble 1; or a large fit's automatic choice), so "
+            "there is no spread across members, or it was stored before the spread was kept. "
+            "?quantity=evidence says where the demonstrations give evidence. For a spread, rerun the job with "
+            "config ensemble ≥ 2 (and tabular_choice false to keep the networks)."
         )
     if quantity == "evidence":
         return Conflict(f"Reward {reward_id} was stored before evidence was kept; rerun the job to get it.")
