@@ -104,6 +104,12 @@ def tabular_choice_applies(tasks: Sequence[TaskData], config: FitConfig) -> bool
     )
 
 
+def task_stays(tasks: Sequence[TaskData]) -> list[np.ndarray]:
+    """Per task, its MDP's stay action per state (`planning.stay_actions`), computed once per distinct MDP."""
+    per_mdp = {key: stay_actions(mdp) for key, mdp in {id(t.mdp): t.mdp for t in tasks}.items()}
+    return [per_mdp[id(t.mdp)] for t in tasks]
+
+
 def _fit_choosing_method(
     tasks: Sequence[TaskData],
     config: FitConfig,
@@ -122,10 +128,7 @@ def _fit_choosing_method(
     it. Progress runs over the 2K + 1 fits."""
     from metairl_engine.maxent import fit_maxent
 
-    stays = None
-    if config.stay_at_ends:
-        per_mdp = {key: stay_actions(mdp) for key, mdp in {id(t.mdp): t.mdp for t in tasks}.items()}
-        stays = [per_mdp[id(t.mdp)] for t in tasks]
+    stays = task_stays(tasks) if config.stay_at_ends else None
     folds = demonstration_folds([t.trajectories for t in tasks], stays=stays)
     networks, probe = replace(config, tabular_choice=False), replace(config, method="maxent")
     n_stages = 2 * len(folds) + 1
@@ -294,8 +297,7 @@ class _Problem:
         demos = [t.trajectories for t in tasks]
         distinct = repeats_its_decisions(demos)  # the demonstrator's own decisions, before any stay is added
         if config.stay_at_ends:
-            stays = {id(m): stay_actions(m) for m in {id(t.mdp): t.mdp for t in tasks}.values()}
-            demos = [with_stays_at_ends(t.trajectories, stays[id(t.mdp)]) for t in tasks]
+            demos = [with_stays_at_ends(d, stay) for d, stay in zip(demos, task_stays(tasks), strict=True)]
         folds = [
             split_steps(demos, fraction=config.holdout_fraction, seed=config.seed, fold=k, distinct=distinct)
             for k in range(self.n_members)
