@@ -23,13 +23,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from metairl_engine.grids import DIRECTION_NAMES, DIRECTIONS
 from metairl_engine.motion.bootstrap import percentile_interval
 from metairl_engine.motion.recording import Recording, SegmentSettings, segment
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 DESCRIPTORS = ("peak_reach", "path_length", "deviation", "time_to_peak_s", "mean_speed")
 """Descriptor names, in the order the readout lists them (docs/api.md, "Motion readout")."""
@@ -258,12 +261,24 @@ LABELS = {
 def comparison_png(
     comparison: dict[str, Any], *, names: tuple[str, str] = ("a", "b"), units: str = "", dpi: int = 100
 ) -> bytes:
+    """`comparison_figure` as PNG bytes."""
+    import io
+
+    buffer = io.BytesIO()
+    comparison_figure(comparison, names=names, units=units, dpi=dpi).savefig(
+        buffer, format="png", bbox_inches="tight"
+    )
+    return buffer.getvalue()
+
+
+def comparison_figure(
+    comparison: dict[str, Any], *, names: tuple[str, str] = ("a", "b"), units: str = "", dpi: int = 100
+) -> Figure:
     """One figure of a `compare` result: peak reach per direction of both sides on a polar plot (bands: 95 %
     intervals), then one panel per descriptor with b − a per direction and its interval, red where the
     interval excludes 0; under it, each side's verdict on its learned readout (``learned.<side>.agreement``)
     where the comparison carries one. matplotlib is imported here only, and drawn on an Agg canvas without pyplot (no global
     backend, safe in a server thread)."""
-    import io
     import textwrap
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -308,6 +323,19 @@ def comparison_png(
                 ax.plot([diff["low"], diff["high"]], [yk, yk], color=colour, lw=2)
             ax.plot(diff["mean"], yk, "o", color=colour)
         ax.axvline(0.0, color="0.7", lw=1)
+        # At least ±5 % of the descriptor's largest mean: differences that are rounding (float32 times) then
+        # read as none, not as a panel of noise on a 1e-7 scale.
+        floor = 0.05 * max(
+            (
+                abs(r[d]["mean"])
+                for s in ("a", "b")
+                for r in comparison[s]["directions"]
+                if r[d]["mean"] is not None
+            ),
+            default=0.0,
+        )
+        left, right = ax.get_xlim()
+        ax.set_xlim(min(left, -floor), max(right, floor))
         ax.set_yticks(ypos, [r["direction"] for r in rows] if k == 0 else [""] * len(rows), fontsize=8)
         what = " (s)" if d == "time_to_peak_s" else unit if d in LENGTHS else f" ({units}/s)" if units else ""
         ax.set_title(f"{LABELS[d]}{what}", fontsize=9)
@@ -327,6 +355,4 @@ def comparison_png(
     ]
     if verdicts:  # the verdict beside the learned readout (docs/motion.md), never the readout alone
         fig.text(0.0, -0.06, "\n".join(textwrap.fill(v, 190) for v in verdicts), va="top", fontsize=8)
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", bbox_inches="tight")
-    return buffer.getvalue()
+    return fig

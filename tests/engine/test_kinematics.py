@@ -12,6 +12,7 @@ from metairl_engine.motion.kinematics import (
     Movement,
     compare,
     compare_recordings,
+    comparison_figure,
     comparison_png,
     motion_summary,
     movements,
@@ -132,6 +133,24 @@ def test_motion_summary_pools_recordings() -> None:
 def test_comparison_figure_is_a_png(controller_comparison: dict) -> None:
     png = comparison_png(controller_comparison, names=("unstimulated", "stimulated"), units="m")
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+
+
+def test_a_difference_panel_spans_a_twentieth_of_its_descriptor_when_the_differences_are_rounding(
+    controller_comparison: dict,
+) -> None:
+    # float32 times give b − a of ±3e-7 s where the sides agree: the panel reads "no difference" at the
+    # descriptor's own scale, not noise on a 1e-7 axis.
+    rounding = {"mean": 0.0, "low": -3e-7, "high": 3e-7}
+    tied = controller_comparison | {
+        "directions": [row | {"time_to_peak_s_diff": rounding} for row in controller_comparison["directions"]]
+    }
+    panel = comparison_figure(tied).axes[1 + DESCRIPTORS.index("time_to_peak_s")]
+    scale = max(r["time_to_peak_s"]["mean"] for s in ("a", "b") for r in tied[s]["directions"])
+    low, high = panel.get_xlim()
+    assert low <= -0.05 * scale and high >= 0.05 * scale
+    reach = comparison_figure(controller_comparison).axes[1 + DESCRIPTORS.index("peak_reach")]
+    widest = max(r["peak_reach_diff"]["high"] for r in controller_comparison["directions"])
+    assert reach.get_xlim()[1] >= widest  # real differences keep the span that shows them
 
 
 def test_comparison_figure_states_a_sides_verdict_on_its_learned_readout_under_the_panels(

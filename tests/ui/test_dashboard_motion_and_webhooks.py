@@ -145,6 +145,10 @@ def test_dashboard_reads_out_a_sessions_motion_beside_its_learned_rewards_and_co
     assert gain.get_attribute("class") == "num pos clear"  # 3 cm more reach, the interval above 0
     diff = next(d for d in comparison["directions"] if d["direction"] == "left")["peak_reach_diff"]
     assert gain.inner_text().split("\n")[0] == f"{diff['mean']:.3f}"
+    overflow = page.evaluate(
+        "() => document.documentElement.scrollWidth - document.documentElement.clientWidth"
+    )
+    assert overflow <= 0, "the page scrolls sideways"
     page.screenshot(path=ARTIFACTS / "4-motion.png")
     page.screenshot(path=ARTIFACTS / "5-motion-full.png", full_page=True)
 
