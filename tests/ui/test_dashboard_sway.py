@@ -69,6 +69,8 @@ def test_dashboard_shows_a_standing_trials_sway_and_its_picture_and_compares_vis
         " return img && img.complete && img.naturalWidth > 0; }"
     )
     page.wait_for_selector(".sway-groups tr[data-group='romberg']")
+    # The rate as recorded, without padding zeros (a plate's 99.9987 Hz keeps its digits).
+    assert page.locator("#sway .sub").inner_text() == "1000 samples at 50 Hz over 20.000 s"
     romberg = page.locator(".sway-groups tr[data-group='romberg'] td").nth(0).inner_text().split("\n")[0]
     assert romberg == f"{summary['romberg']['area95']['value']:.3f}"
     assert page.locator(".sway-groups tbody tr").count() == 3  # closed, open, Romberg

@@ -1163,7 +1163,7 @@ async function showSwayTrial(recordingId) {
           el("tr", { "data-measure": key }, el("th", {}, label), el("td", { class: "num" }, fmt(sway.descriptors[key])), el("td", { class: "meta" }, swayUnit(kind, sway.units))),
         )),
       ),
-      el("p", { class: "sub" }, `${sway.n_samples} samples at ${fmt(sway.rate_hz, 4)} Hz over ${fmt(sway.duration_s, 3)} s`),
+      el("p", { class: "sub" }, `${sway.n_samples} samples at ${Number(sway.rate_hz.toPrecision(6))} Hz over ${fmt(sway.duration_s, 3)} s`),
     );
     loadImage(img, "sway", current, `/v1/recordings/${encodeURIComponent(recordingId)}/sway?format=png`);
   } catch (error) {
