@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import logging
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -153,6 +154,15 @@ def pointer_from_loc(loc: Sequence[str | int], body: Any) -> str:
     return "".join(f"/{p}" for p in out)
 
 
+def _tag_field(error: Any) -> tuple[str, ...]:
+    """The discriminator field (``kind``) of a tagged union's error, which pydantic locates at the union
+    itself, so the pointer names the field that picks the variant."""
+    if error.get("type") not in ("union_tag_invalid", "union_tag_not_found"):
+        return ()
+    name = str((error.get("ctx") or {}).get("discriminator", "")).strip("'")
+    return (name,) if name.isidentifier() else ()
+
+
 def _child(node: Any, part: str | int) -> tuple[bool, Any]:
     """Whether `node` (parsed JSON) has the key or index `part`, and the value there."""
     if isinstance(node, dict) and part in node:
@@ -166,8 +176,13 @@ def validation_errors(errors: Sequence[Any], body: Any) -> Unprocessable:
     """Pydantic errors as a 422: body errors get pointers, query/path/header errors name the parameter."""
     items: list[dict[str, str]] = []
     for e in errors:
-        loc = tuple(e.get("loc", ()))
+        loc = tuple(e.get("loc", ())) + _tag_field(e)
         message = str(e.get("msg", "is invalid"))
+        if e.get("type") == "union_tag_not_found":
+            message = "is required"
+        value = e.get("input")
+        if isinstance(value, float) and not math.isfinite(value):  # NaN fails every bound: say why
+            message = f"must be a finite number, not {value}"
         if loc and loc[0] in ("query", "path", "header", "cookie"):
             items.append(
                 {

@@ -14,9 +14,8 @@ from service.settings import Settings
 
 def too_large(pointer: str, message: str) -> Unprocessable:
     """A 422 at `pointer` saying what is too large and which setting bounds it."""
-    return Unprocessable(
-        f"Too large: {pointer or 'the body'} {message}.", errors=[{"pointer": pointer, "message": message}]
-    )
+    where = f" at {pointer}" if pointer else ""
+    return Unprocessable(f"Too large{where}: {message}.", errors=[{"pointer": pointer, "message": message}])
 
 
 def check_array_elements(name: str, shape: Sequence[int], settings: Settings, *, pointer: str) -> None:
@@ -86,13 +85,24 @@ GRID_BYTES_PER_STATE = 128
 
 
 def check_grid(
-    *, width: int, height: int, moves: int, stay: bool, slip: float, velocity: bool, settings: Settings
+    *,
+    width: int,
+    height: int,
+    moves: int,
+    stay: bool,
+    slip: float,
+    velocity: bool,
+    settings: Settings,
+    pointer: str = "",
 ) -> None:
     """422 before a grid is built if its states × actions exceed `max_state_actions` or building it would take
-    more than the per-request memory budget (a slippery grid stores up to one transition per action pair)."""
+    more than the per-request memory budget (a slippery grid stores up to one transition per action pair).
+    The error points at the grid's larger side under `pointer` (the grid object's own pointer)."""
     n_states = width * height * (8 if velocity else 1)
     n_actions = 8 if velocity else moves + (1 if stay else 0)
-    check_mdp_size(n_states, n_actions, None, settings, pointer="", what="the grid")
+    side = f"{pointer}/{'width' if width >= height else 'height'}"
+    what = f"the {width:,}×{height:,} grid"
+    check_mdp_size(n_states, n_actions, None, settings, pointer=side, what=what)
     transitions = n_states * n_actions * (n_actions if slip > 0 else 1)
     estimate = transitions * GRID_BYTES_PER_TRANSITION + n_states * GRID_BYTES_PER_STATE
-    check_request_memory("building the grid", estimate, settings, pointer="")
+    check_request_memory(f"building {what}", estimate, settings, pointer=side)

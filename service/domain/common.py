@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
@@ -30,6 +31,27 @@ Metadata = Annotated[
     dict[str, Any] | None,
     Field(description="Free-form JSON object kept with the resource (e.g. age, condition, session date)."),
 ]
+
+METADATA_MAX_BYTES = 64 * 1024
+"""Largest metadata object, as compact JSON: labels, not data (a list page of 100 resources stays under
+7 MB); arrays belong in uploads, which have their own budgets."""
+
+
+def _small_finite_json(value: dict[str, Any] | None) -> dict[str, Any] | None:
+    """Refuse metadata over `METADATA_MAX_BYTES` or holding NaN or infinity (JSON cannot store them)."""
+    if value is None:
+        return None
+    try:
+        text = json.dumps(value, allow_nan=False, separators=(",", ":"))
+    except ValueError:
+        raise ValueError("must hold only finite numbers (NaN and Infinity are not JSON)") from None
+    if len(text.encode()) > METADATA_MAX_BYTES:
+        raise ValueError(f"is {len(text.encode()):,} bytes as JSON; at most {METADATA_MAX_BYTES:,}")
+    return value
+
+
+MetadataIn = Annotated[Metadata, AfterValidator(_small_finite_json)]
+"""Metadata as uploaded: at most `METADATA_MAX_BYTES`, finite numbers only."""
 
 
 class Resource(BaseModel):

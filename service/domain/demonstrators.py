@@ -5,7 +5,7 @@ from __future__ import annotations
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
-from service.domain.common import Metadata, Name, Resource
+from service.domain.common import Metadata, MetadataIn, Name, Resource
 from service.store.models.demonstrators import Demonstrator
 
 EXAMPLE_IN: JsonDict = {
@@ -20,7 +20,7 @@ class DemonstratorIn(BaseModel):
     model_config = ConfigDict(json_schema_extra={"examples": [EXAMPLE_IN]})
 
     name: Name
-    metadata: Metadata = None
+    metadata: MetadataIn = None
 
 
 class DemonstratorOut(Resource):

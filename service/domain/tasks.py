@@ -8,7 +8,7 @@ from datetime import datetime
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
-from service.domain.common import Metadata, Name, Number, Resource
+from service.domain.common import Metadata, MetadataIn, Name, Number, Resource
 from service.store.models.demonstrators import Task, TrueReward
 
 EXAMPLE_IN: JsonDict = {
@@ -34,7 +34,7 @@ class TaskIn(BaseModel):
 
     name: Name
     mdp_id: str
-    metadata: Metadata = None
+    metadata: MetadataIn = None
 
 
 class TaskOut(Resource):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import json
 
 import numpy as np
 import pytest
@@ -87,6 +88,31 @@ def test_odd_mdp_bodies_are_422(client: TestClient, auth: dict[str, str], body: 
 
 
 @pytest.mark.parametrize(
+    ("body", "pointer", "words"),
+    [
+        ({"kind": "hex", "name": "m"}, "/kind", "'explicit', 'grid'"),
+        ({"name": "m"}, "/kind", "is required"),
+        (
+            '{"kind": "grid", "name": "g", "width": 3, "height": 3, "gamma": 0.9, "slip": NaN}',
+            "/slip",
+            "finite",
+        ),
+        ({"kind": "grid", "name": "g", "width": 10**30, "height": 3, "gamma": 0.9}, "/width", "METAIRL_"),
+    ],
+)
+def test_an_odd_mdp_body_is_422_at_the_field_that_makes_it_odd(
+    client: TestClient, auth: dict[str, str], body: object, pointer: str, words: str
+) -> None:
+    if isinstance(body, str):  # NaN as JavaScript writes it, which Python's json reads
+        response = client.post("/v1/mdps", content=body, headers=auth | {"Content-Type": "application/json"})
+    else:
+        response = client.post("/v1/mdps", json=body, headers=auth)
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["errors"]
+    assert error["pointer"] == pointer and words in error["message"], error
+
+
+@pytest.mark.parametrize(
     ("arrays", "data"),
     [
         ({"next_state": np.array([["a", "b"]])}, {"name": "m", "gamma": "0.9"}),
@@ -133,3 +159,24 @@ def test_odd_csv_files_are_422(client: TestClient, auth: dict[str, str], payload
         f"/v1/tasks/{task['id']}/demonstrations", files={"file": ("d.csv", payload)}, headers=auth
     )
     assert response.status_code == 422, response.text
+
+
+@pytest.mark.parametrize(
+    ("metadata", "words"),
+    [({"notes": "x" * 70_000}, "at most 65,536"), ({"weight": float("nan")}, "finite")],
+)
+def test_metadata_too_large_or_not_finite_is_422_at_metadata_and_stores_nothing(
+    client: TestClient, auth: dict[str, str], metadata: dict, words: str
+) -> None:
+    body = json.dumps({"name": "p", "metadata": metadata})  # NaN as JavaScript writes it
+    response = client.post(
+        "/v1/demonstrators", content=body, headers=auth | {"Content-Type": "application/json"}
+    )
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["errors"]
+    assert error["pointer"] == "/metadata" and words in error["message"], error
+    assert client.get("/v1/demonstrators", headers=auth).json()["data"] == []
+    ok = {"notes": "x" * 60_000}
+    assert (
+        client.post("/v1/demonstrators", json={"name": "p", "metadata": ok}, headers=auth).status_code == 201
+    )

@@ -94,7 +94,7 @@ def test_grid_mdp_is_built_server_side_with_layout(client: TestClient, auth: dic
         ({"layout": {"width": 2, "height": 2}}, "/layout", "3 states"),
         ({"features": [[1.0], [2.0]]}, "/features", "rows"),
         ({"name": ""}, "/name", "at least 1"),
-        ({"kind": "hexagonal"}, "", "kind"),
+        ({"kind": "hexagonal"}, "/kind", "hexagonal"),
     ],
 )
 def test_invalid_explicit_mdps_are_422_with_pointer(

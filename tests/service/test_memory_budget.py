@@ -78,7 +78,7 @@ def test_a_csv_with_more_rows_than_the_budget_holds_is_422(
 def test_a_grid_is_estimated_before_it_is_built(small: tuple[FastAPI, TestClient, dict[str, str]]) -> None:
     _, client, auth = small
     body = {"kind": "grid", "name": "big", "width": 300, "height": 300, "gamma": 0.9}
-    assert "building the grid" in refused(client.post("/v1/mdps", json=body, headers=auth))
+    assert "building the 300×300 grid" in refused(client.post("/v1/mdps", json=body, headers=auth))
     too_many = {
         "kind": "grid",
         "name": "huge",

@@ -18,7 +18,7 @@ from fastapi.testclient import TestClient
 from service.api.app import create_app
 from service.files.npz import npz_headers
 from service.settings import Settings
-from tests.service.helpers import add_demonstrations, created, make_task
+from tests.service.helpers import add_demonstrations, created, make_demonstrator, make_task
 
 
 def npz(**arrays: np.ndarray) -> bytes:
@@ -125,3 +125,31 @@ def test_jobs_over_the_limits_are_422_naming_the_setting(
         error = response.json()["errors"][0]
         assert error["pointer"] == "/config/hidden/1" and "METAIRL_MAX_HIDDEN_UNITS" in error["message"]
     assert client.get("/v1/jobs", headers=auth).json()["data"] == []
+
+
+def test_a_recording_that_would_create_a_grid_over_the_limits_is_422_at_the_grid_and_stores_nothing(
+    small_app: FastAPI, auth: dict[str, str]
+) -> None:
+    samples = [{"t": 0.01 * k, "x": 0.0, "y": 0.0} for k in range(10)]
+    bounds = {"x_min": -0.2, "x_max": 0.2, "y_min": -0.2, "y_max": 0.2}
+    with TestClient(small_app) as client:
+        dem = make_demonstrator(client, auth)
+        response = client.post(
+            f"/v1/demonstrators/{dem['id']}/recordings",
+            json={"bounds": bounds, "samples": samples, "grid": {"width": 30, "height": 20}},
+            headers=auth,
+        )
+        assert response.status_code == 422, response.text
+        (error,) = response.json()["errors"]
+        assert error["pointer"] == "/grid/width" and "METAIRL_MAX_STATE_ACTIONS" in error["message"]
+        assert response.json()["detail"].startswith("Too large at /grid/width: the 30×20 grid has 4,800 states")
+        assert client.get("/v1/mdps", headers=auth).json()["data"] == []
+        assert client.get(f"/v1/demonstrators/{dem['id']}/recordings", headers=auth).json()["data"] == []
+
+
+def test_a_grid_over_the_limits_is_422_at_its_larger_side(small_app: FastAPI, auth: dict[str, str]) -> None:
+    grid = {"kind": "grid", "name": "g", "width": 3, "height": 10**30, "moves": 4, "gamma": 0.9}
+    with TestClient(small_app) as client:
+        response = client.post("/v1/mdps", json=grid, headers=auth)
+    assert response.status_code == 422, response.text
+    assert response.json()["errors"][0]["pointer"] == "/height"

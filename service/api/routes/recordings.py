@@ -30,6 +30,7 @@ from service.files.csv_rows import check_csv_memory
 from service.files.force_plates import file_samples
 from service.files.recording_samples import SAMPLE_BYTES, form_options, json_samples
 from service.results.downloads import Download
+from service.sizes import check_grid
 from service.store import recordings
 from service.store.demonstrators import get_demonstrator
 
@@ -119,6 +120,18 @@ async def upload_recording(
         )
     else:
         options, samples = body, json_samples(body)
+    if options.grid is not None:  # a grid the upload may create: the limits of POST /v1/mdps
+        g = options.grid
+        check_grid(
+            width=g.width,
+            height=g.height,
+            moves=8,
+            stay=False,
+            slip=0.0,
+            velocity=True,
+            settings=request.app.state.settings,
+            pointer="/grid",
+        )
     created = await run_in_threadpool(recordings.add_recording, session, demonstrator, options, samples)
     await run_in_threadpool(session.commit)
     response.headers["Location"] = f"/v1/demonstrators/{demonstrator.id}/recordings"
