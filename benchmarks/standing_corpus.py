@@ -37,7 +37,7 @@ def outcome(name: str, data: bytes, platform: int | None) -> str:
         f"{plate.get('position_unit_read_as')}, {plate.get('n_events')} events {plate.get('events')}, "
         f"{len(plate.get('loaded_stretches_dropped', []))} other loaded stretches dropped; area95 "
         f"{m.area95 * 1e4:.3g} cm², mean_velocity {m.mean_velocity * 100:.3g} cm/s, mean_frequency "
-        f"{m.mean_frequency:.3g} Hz"
+        f"{m.mean_frequency:.3g} Hz{' (coarse: under 20 s)' if 'mean_frequency' in m.caveats else ''}"
     )
 
 

@@ -114,8 +114,26 @@ class Recording:
 
     @property
     def sample_rate(self) -> float:
-        """Samples per time unit (from the median interval)."""
-        return float(1.0 / np.median(np.diff(self.t)))
+        """Samples per time unit (`sampling_rate`)."""
+        return sampling_rate(self.t)
+
+
+GAP_FACTOR = 1.5
+"""An interval this many times the median one is a gap (samples missing): `sampling_rate` then uses the median."""
+
+
+def sampling_rate(t: np.ndarray) -> float:
+    """Samples per second of increasing times ``t``: (N − 1) / (t[-1] − t[0]) in float64, which averages out
+    the rounding of stored times (float32 steps bias a median interval, by 4e-4 at 2000 Hz); the median
+    interval's inverse when some interval exceeds `GAP_FACTOR` times it (samples missing), since the span would
+    count time that was not sampled."""
+    t = np.asarray(t, dtype=np.float64)
+    dt = np.diff(t)
+    median = float(np.median(dt))
+    rounding = 2 * float(np.finfo(np.float32).eps) * float(max(abs(t[0]), abs(t[-1])))  # float32 storage
+    if float(dt.max()) > GAP_FACTOR * median + rounding:
+        return 1.0 / median
+    return (len(t) - 1) / float(t[-1] - t[0])
 
 
 def _sample_issues(columns: dict[str, np.ndarray], bounds: Bounds) -> list[tuple[int, Issue]]:
@@ -357,7 +375,7 @@ def segment(rec: Recording, settings: SegmentSettings = SegmentSettings()) -> li
     peaks, _ = find_peaks(
         distance,
         prominence=settings.min_prominence * float(distance.max()),
-        distance=max(1, int(settings.min_separation_s * rec.sample_rate)),
+        distance=max(1, round(settings.min_separation_s * rec.sample_rate)),
     )
     cuts = [0] + [int(a + np.argmin(distance[a:b])) for a, b in pairwise(peaks)] + [len(distance)]
     wanted = np.array([DIRECTION_NAMES.index(d) for d in settings.directions])

@@ -6,7 +6,8 @@ elderly adults", IEEE Trans Biomed Eng 43(9):956-966, with the conventions of Du
 (github.com/BMClab/BMC: ``hyperellipsoid.py``, ``psd.py``) that the public balance data set of Santos &
 Duarte (2016, PeerJ 4:e2648) used for its published ``COParea``, ``COPvelo`` and ``COPmfreq``:
 
-- x and y are taken about their mean (``x̃ = x − mean(x)``); N samples at rate fs span T = N / fs;
+- x and y are taken about their mean (``x̃ = x − mean(x)``); N samples at rate fs span T = N / fs, fs from the
+  span of the times (`sampling_rate`);
 - path length ``L = Σ √(Δx² + Δy²)``, mean velocity ``L / T`` (per axis ``Σ|Δx| / T``);
 - mean distance ``mean √(x̃² + ỹ²)``; RMS per axis ``√mean x̃²``; range ``max − min``;
 - 95 % prediction ellipse (Chew 1966; Schubert & Kirchner 2014): the region holding a new sample with
@@ -15,26 +16,60 @@ Duarte (2016, PeerJ 4:e2648) used for its published ``COParea``, ``COPvelo`` and
 - sway area per second (Hufschmidt et al. 1980; Prieto's AREA-SW) ``Σ |x̃ᵢ ỹᵢ₊₁ − x̃ᵢ₊₁ ỹᵢ| / (2T)``;
 - Welch spectra per axis (Hann window, segments of N/2 samples overlapping by N/4, nfft N/2, each segment's
   mean removed); an axis's mean frequency ``∫ f P df / ∫ P df`` (trapezoid rule), the two combined weighted
-  by their total power ``Σ P``; the 95 % power frequency the lowest f below which 95 % of ``∫ P df`` lies.
+  by their total power ``Σ P``; the 95 % power frequency the lowest f below which 95 % of ``∫ P df`` lies;
+  given with a caveat below `MIN_SPECTRAL_DURATION_S`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
 from metairl_engine.errors import Issue, check
 from metairl_engine.motion.bootstrap import percentile_interval
+from metairl_engine.motion.recording import sampling_rate
 
 ELLIPSE_P = 0.95
 POWER_FRACTION = 0.95
 MIN_SWAY_SAMPLES = 8
 """Fewest samples the measures are computed on (Welch needs segments of at least four)."""
+MIN_SPECTRAL_DURATION_S = 20.0
+"""Shortest analysed stretch whose frequency measures come without a caveat. Segments of N/2 samples put the Welch bins 2/T apart:
+0.1 Hz at 20 s, against quiet-standing mean frequencies of 0.1-0.5 Hz; 20 s is also the shortest test whose
+spectral median frequency Vieira, Oliveira & Nadal (2009, Braz J Med Biol Res 42:665) found reliable."""
+SPECTRAL = ("mean_frequency", "mean_frequency_x", "mean_frequency_y", "f95", "f95_x", "f95_y")
+"""The measures taken from the Welch spectra."""
+LENGTH_POWER: dict[str, int] = {
+    "path_length": 1,
+    "mean_velocity": 1,
+    "mean_velocity_x": 1,
+    "mean_velocity_y": 1,
+    "mean_distance": 1,
+    "rms": 1,
+    "rms_x": 1,
+    "rms_y": 1,
+    "range_x": 1,
+    "range_y": 1,
+    "area95": 2,
+    "ellipse_major": 1,
+    "ellipse_minor": 1,
+    "ellipse_angle": 0,
+    "sway_area_per_second": 2,
+    **dict.fromkeys(SPECTRAL, 0),
+    "centre_x": 1,
+    "centre_y": 1,
+}
+"""The power of the length unit each measure carries: a measure in unit u is ``value · k**power`` in a unit k
+times smaller (areas by the square, lengths and velocities linearly, angles and frequencies unchanged)."""
+NO_RATIO = frozenset({"ellipse_angle", "centre_x", "centre_y"})
+"""Measures whose ratio means nothing (an angle, positions: their zero is arbitrary), so no quotient is given."""
 
 METHODS: dict[str, str] = {
     "centring": "x and y taken about their mean over the analysed samples",
+    "rate": "(N - 1) / (t_last - t_first) in float64 (times rounded on storage average out); the median "
+    "interval's inverse where an interval exceeds 1.5 times the median (a gap: samples missing)",
     "duration": "N samples / rate (each sample stands for 1/rate)",
     "path_length": "sum of the distances between consecutive samples",
     "mean_velocity": "path length / duration (per axis: sum of |dx| or |dy| / duration); Prieto et al. 1996",
@@ -53,6 +88,8 @@ METHODS: dict[str, str] = {
     "mean_frequency": "per axis int f P df / int P df (trapezoid rule, Duarte's psd.py); the two axes combined "
     "weighted by their total power sum P, as in Santos & Duarte 2016",
     "f95": "lowest frequency below which 95 % of int P df lies (cumulative trapezoid); combined: of Px + Py",
+    "minimum_duration": f"frequency measures of under {MIN_SPECTRAL_DURATION_S:g} s analysed carry a caveat (Welch "
+    "bins 2/T apart: 0.1 Hz at 20 s; Vieira et al. 2009)",
 }
 """How each measure is computed, as the sway route reports it in ``methods``."""
 
@@ -92,7 +129,8 @@ class SwayMeasures:
     """The sway measures of one recording, lengths in its units and times in seconds (see `METHODS`).
 
     ``frequencies`` (K,) Hz and ``psd_x``, ``psd_y`` (K,) units²/Hz are the Welch spectra the frequency
-    measures come from."""
+    measures come from; ``not_estimated`` gives, for each measure that is NaN, the reason, and ``caveats``, for
+    each that is coarse (frequencies of a stretch under `MIN_SPECTRAL_DURATION_S`), why."""
 
     rate_hz: float
     n_samples: int
@@ -123,11 +161,22 @@ class SwayMeasures:
     frequencies: np.ndarray
     psd_x: np.ndarray
     psd_y: np.ndarray
+    not_estimated: dict[str, str] = field(default_factory=dict)
+    caveats: dict[str, str] = field(default_factory=dict)
 
     def descriptors(self) -> dict[str, float]:
-        """The scalar measures by name (everything but the rate, sample count, duration and spectra); a
-        frequency of an axis with no power is NaN."""
-        skip = {"rate_hz", "n_samples", "duration_s", "frequencies", "psd_x", "psd_y"}
+        """The scalar measures by name (everything but the rate, sample count, duration and spectra); NaN for
+        those in ``not_estimated``."""
+        skip = {
+            "rate_hz",
+            "n_samples",
+            "duration_s",
+            "frequencies",
+            "psd_x",
+            "psd_y",
+            "not_estimated",
+            "caveats",
+        }
         return {f.name: float(getattr(self, f.name)) for f in fields(self) if f.name not in skip}
 
     def ellipse_outline(self, points: int = 181) -> np.ndarray:
@@ -142,11 +191,11 @@ class SwayMeasures:
 def analysed_samples(
     t: np.ndarray, x: np.ndarray, y: np.ndarray, options: SwayOptions = SwayOptions()
 ) -> tuple[float, np.ndarray, np.ndarray]:
-    """The rate (from the median interval) and the x, y the measures use: trimmed, then filtered if asked."""
+    """The rate (`sampling_rate`) and the x, y the measures use: trimmed, then filtered if asked."""
     t, x, y = (np.asarray(a, dtype=np.float64) for a in (t, x, y))
     if len(t) < MIN_SWAY_SAMPLES:
         check([Issue("/samples", f"has {len(t)} samples; sway measures need at least {MIN_SWAY_SAMPLES}")])
-    rate = float(1.0 / np.median(np.diff(t)))
+    rate = sampling_rate(t)
     check(options.issues(rate, duration_s=len(t) / rate))
     keep = (t >= t[0] + options.trim_start_s - 0.5 / rate) & (t <= t[-1] - options.trim_end_s + 0.5 / rate)
     if keep.sum() < MIN_SWAY_SAMPLES:
@@ -173,7 +222,9 @@ def sway_measures(
 ) -> SwayMeasures:
     """All sway measures of COP samples ``t`` (s, increasing), ``x``, ``y`` (any length unit); see `METHODS`.
 
-    Raises `InvalidInput` for fewer than `MIN_SWAY_SAMPLES` samples (after trimming) or unusable options."""
+    Frequency measures are NaN for an axis without power (the reason in ``not_estimated``) and carry a caveat
+    below `MIN_SPECTRAL_DURATION_S` (``caveats``). Raises `InvalidInput` for fewer than `MIN_SWAY_SAMPLES` samples (after trimming) or
+    unusable options."""
     from scipy import signal, stats
 
     rate, x, y = analysed_samples(t, x, y, options)
@@ -202,6 +253,21 @@ def sway_measures(
         (f, w) for f, w in ((mean_fx, power_x), (mean_fy, power_y)) if w > 0
     ]  # a still axis adds nothing
     mean_f = sum(f * w for f, w in weighted) / total if total > 0 else float("nan")
+    spectral = {
+        "mean_frequency": float(mean_f),
+        "mean_frequency_x": mean_fx,
+        "mean_frequency_y": mean_fy,
+        "f95": _power_frequency(frequencies, psd_x + psd_y),
+        "f95_x": _power_frequency(frequencies, psd_x),
+        "f95_y": _power_frequency(frequencies, psd_y),
+    }
+    not_estimated = {
+        name: "the COP never moves along this axis: its spectrum holds no power"
+        if name[-2:] in ("_x", "_y")
+        else "the COP never moves: its spectra hold no power"
+        for name, value in spectral.items()
+        if not np.isfinite(value)
+    }
 
     return SwayMeasures(
         rate_hz=rate,
@@ -222,18 +288,27 @@ def sway_measures(
         ellipse_minor=float(np.sqrt(scale * max(eigenvalues[0], 0.0))),
         ellipse_angle=angle,
         sway_area_per_second=float(np.abs(xc[:-1] * yc[1:] - xc[1:] * yc[:-1]).sum() / (2 * duration)),
-        mean_frequency=float(mean_f),
-        mean_frequency_x=mean_fx,
-        mean_frequency_y=mean_fy,
-        f95=_power_frequency(frequencies, psd_x + psd_y),
-        f95_x=_power_frequency(frequencies, psd_x),
-        f95_y=_power_frequency(frequencies, psd_y),
+        **spectral,
         centre_x=cx,
         centre_y=cy,
         frequencies=frequencies,
         psd_x=psd_x,
         psd_y=psd_y,
+        not_estimated=not_estimated,
+        caveats=_short_for_spectra(duration=duration, rate=rate, n=n),
     )
+
+
+def _short_for_spectra(*, duration: float, rate: float, n: int) -> dict[str, str]:
+    """The caveat on every frequency measure of a stretch under `MIN_SPECTRAL_DURATION_S` (to within half a
+    sample): the values are the contract's, computed as for any trial, but on bins too coarse to read finely."""
+    if n + 0.5 >= MIN_SPECTRAL_DURATION_S * rate:
+        return {}
+    reason = (
+        f"the analysed {duration:.3g} s is shorter than the {MIN_SPECTRAL_DURATION_S:g} s the Welch spectra need "
+        f"to resolve quiet standing's 0.1-0.5 Hz (their bins are {2 / duration:.3g} Hz apart): read it coarsely"
+    )
+    return dict.fromkeys(SPECTRAL, reason)
 
 
 def _mean_frequency(f: np.ndarray, psd: np.ndarray) -> float:

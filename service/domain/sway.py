@@ -32,6 +32,8 @@ class SwayOut(BaseModel):
                     "n_samples": 6000,
                     "options": {"lowpass_hz": None, "trim_start_s": 0.0, "trim_end_s": 0.0},
                     "descriptors": {"area95": 0.945, "mean_velocity": 0.620, "mean_frequency": 0.257},
+                    "not_estimated": {},
+                    "caveats": {},
                     "methods": {"area95": "95 % prediction ellipse of a new sample, F quantile: ..."},
                     "spectra": None,
                 }
@@ -43,15 +45,27 @@ class SwayOut(BaseModel):
     units: str | None = Field(
         description="Length unit of the COP: `m` for a plate file, else the upload's `units` (null if not given)."
     )
-    rate_hz: float = Field(description="Samples per second (from the median interval).")
+    rate_hz: float = Field(
+        description="Samples per second: (N − 1) / (last − first time); the median interval's inverse where the "
+        "times have a gap (an interval over 1.5 times the median)."
+    )
     duration_s: float = Field(description="Analysed samples / rate.")
     n_samples: int = Field(description="Samples analysed (after any trim).")
     options: dict[str, float | None] = Field(description="The trim and filter applied (none by default).")
     descriptors: dict[str, float | None] = Field(
-        description="Null where undefined (the frequencies of an axis that never moves). `area95` (units²), `mean_velocity` (units/s), `mean_frequency` (Hz) and the rest of the "
+        description="Null where not estimated (reason in `not_estimated`). `area95` (units²), `mean_velocity` (units/s), `mean_frequency` (Hz) and the rest of the "
         "standard set: path_length, mean_velocity_x/_y, mean_distance, rms, rms_x/_y, range_x/_y, "
         "ellipse_major/_minor (semi-axes), ellipse_angle (degrees), sway_area_per_second, mean_frequency_x/_y, "
         "f95, f95_x/_y, centre_x/_y."
+    )
+    not_estimated: dict[str, str] = Field(
+        default_factory=dict,
+        description="Why each null descriptor is null: the frequency measures of an axis that never moves.",
+    )
+    caveats: dict[str, str] = Field(
+        default_factory=dict,
+        description="Descriptors given but to be read coarsely, and why: the frequency measures of an analysed "
+        "stretch under 20 s, whose Welch bins are over 0.1 Hz apart (quiet standing sways at 0.1-0.5 Hz).",
     )
     methods: dict[str, str] = Field(description="How each measure is computed, with its source.")
     spectra: Spectra | None = Field(default=None, description="With `?spectra=true`: the Welch spectra.")
@@ -101,6 +115,7 @@ class SwaySummaryOut(BaseModel):
                 {
                     "demonstrator_id": "dem_Qd8s0Xz4pN2uLm7vB1cE3w",
                     "by": "vision",
+                    "unit": "cm",
                     "units": ["cm"],
                     "groups": [
                         {
@@ -119,6 +134,7 @@ class SwaySummaryOut(BaseModel):
                     ],
                     "romberg": {"area95": {"value": 1.33, "low": 0.9, "high": 2.0}},
                     "unlabelled": [],
+                    "not_estimated": {},
                     "method": "95% percentile bootstrap over trials, 2000 resamples, seeded",
                 }
             ]
@@ -127,12 +143,22 @@ class SwaySummaryOut(BaseModel):
 
     demonstrator_id: str
     by: str = Field(description="The metadata label grouped by.")
-    units: list[str | None] = Field(description="The length units of the trials (one, unless mixed).")
+    unit: str | None = Field(
+        description="The length unit of every measure: the trials' own, or, for trials in different units among "
+        "m, cm and mm, the one most trials have (ties to the finer), the others converted (areas by the square)."
+    )
+    units: list[str | None] = Field(description="The length units of the trials as uploaded.")
     groups: list[SwayGroup]
     differences: list[SwayDifference] = Field(description="For every pair of groups in label order, b − a.")
     romberg: dict[str, Estimate] | None = Field(
         description="With `by=vision` and groups `closed` and `open`: each measure's mean with eyes closed over "
-        "its mean with eyes open (the Romberg quotient), else null."
+        "its mean with eyes open (the Romberg quotient), else null; none for `ellipse_angle` (a ratio of angles "
+        "means nothing)."
     )
     unlabelled: list[str] = Field(description="Standing recordings without the label, left out.")
+    not_estimated: dict[str, dict[str, str]] = Field(
+        default_factory=dict,
+        description="Per recording with null measures, which and why (as in its sway answer): a group's mean "
+        "of such a measure is null.",
+    )
     method: str = Field(description="How the intervals are computed.")

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -12,8 +13,10 @@ from sqlalchemy.orm import Session
 from metairl_engine import InvalidInput
 from metairl_engine.motion.sway import (
     CONFIDENCE,
+    LENGTH_POWER,
     METHODS,
     N_RESAMPLES,
+    NO_RATIO,
     GroupComparison,
     Interval,
     SwayMeasures,
@@ -36,6 +39,8 @@ SUMMARY_SKIP = ("centre_x", "centre_y")
 """Descriptors left out of group comparisons: where the plate put the feet says nothing about sway."""
 ROMBERG = ("closed", "open")
 """The vision labels whose quotient of means is the Romberg quotient (eyes closed / eyes open)."""
+LENGTH_UNITS = {"mm": 1e-3, "cm": 1e-2, "m": 1.0}
+"""Length units trials in different units are converted between (metres per unit), finest first."""
 
 
 def recording_units(row: RecordingRow) -> str | None:
@@ -61,11 +66,52 @@ class SwaySummary:
     """A demonstrator's standing trials grouped by the value of one metadata label."""
 
     by: str
+    unit: str | None
     units: list[str | None]
     recording_ids: dict[str, list[str]]
     unlabelled: list[str]
     comparison: GroupComparison
     romberg: dict[str, Interval] | None
+    not_estimated: dict[str, dict[str, str]]
+
+
+def common_unit(rows: list[RecordingRow]) -> tuple[str | None, dict[str, float]]:
+    """The one length unit a summary of ``rows`` reports and, per recording, the factor its lengths are
+    multiplied by to be in it: the recordings' own unit when they share one, else (all in m, cm or mm) the unit
+    most of them have, ties to the finer; 409 naming the recordings when their lengths cannot be put in one
+    unit (some without a unit, or one outside m, cm, mm)."""
+    units = {row.id: recording_units(row) for row in rows}
+    if len(set(units.values())) == 1:
+        return next(iter(units.values())), dict.fromkeys(units, 1.0)
+    known = {rid: (u or "").strip().lower() for rid, u in units.items()}
+    if all(u in LENGTH_UNITS for u in known.values()):
+        counts = Counter(known.values())
+        unit = max(LENGTH_UNITS, key=lambda u: (counts[u], -LENGTH_UNITS[u]))
+        return unit, {rid: LENGTH_UNITS[u] / LENGTH_UNITS[unit] for rid, u in known.items()}
+    by_unit: dict[str | None, list[str]] = {}
+    for rid, u in units.items():
+        by_unit.setdefault(u, []).append(rid)
+    listing = "; ".join(
+        f"{'no unit' if u is None else repr(u)}: {', '.join(ids)}"
+        for u, ids in sorted(by_unit.items(), key=str)
+    )
+    raise Conflict(
+        f"The trials' lengths cannot be put in one unit ({listing}): only m, cm and mm convert, and a trial "
+        "without a unit has none to convert from. Upload the trials again with `units` m, cm or mm (a stored "
+        "recording's unit cannot be changed; DELETE /v1/demonstrators/{id} removes a demonstrator with its "
+        "recordings), or compare by a label that only trials in one unit carry.",
+        errors=[
+            {
+                "pointer": "",
+                "recording_id": rid,
+                "message": "has no length unit (`units`)"
+                if u is None
+                else f"is in {u!r}, which does not convert to the others' units",
+            }
+            for rid, u in units.items()
+            if u is None or known[rid] not in LENGTH_UNITS
+        ],
+    )
 
 
 def sway_summary(
@@ -73,7 +119,8 @@ def sway_summary(
 ) -> SwaySummary:
     """Group the demonstrator's standing recordings by ``metadata[by]`` (groups in sorted order), compare
     each measure's means between groups and, for ``by=vision`` with ``closed`` and ``open`` groups, give the
-    Romberg quotient; 409 when no standing recording carries the label."""
+    Romberg quotient of the measures whose ratio means something (not `NO_RATIO`); lengths in one unit
+    (`common_unit`); 409 when no standing recording carries the label or the units do not convert."""
     rows = demonstrator_recordings(session, demonstrator, protocol="standing")
     labelled: dict[str, list[RecordingRow]] = {}
     unlabelled = []
@@ -88,23 +135,34 @@ def sway_summary(
             f"Demonstrator {demonstrator.id} has {len(rows)} standing recordings and none carries the metadata "
             f"label {by!r}; upload standing trials with metadata such as {{{by!r}: ...}}."
         )
+    unit, factors = common_unit([r for rs in labelled.values() for r in rs])
     groups = {}
+    not_estimated = {}
     for label in sorted(labelled):
-        measures = [recording_sway(session, row, options).descriptors() for row in labelled[label]]
+        measures = []
+        for row in labelled[label]:
+            sway = recording_sway(session, row, options)
+            scale = factors[row.id]
+            measures.append({k: v * scale ** LENGTH_POWER[k] for k, v in sway.descriptors().items()})
+            if sway.not_estimated:
+                not_estimated[row.id] = sway.not_estimated
         groups[label] = {
             name: np.array([m[name] for m in measures]) for name in measures[0] if name not in SUMMARY_SKIP
         }
     lowered = {label.lower(): label for label in groups}
     romberg = None
     if by.lower() == "vision" and all(v in lowered for v in ROMBERG):
-        romberg = quotient(groups[lowered["closed"]], groups[lowered["open"]])
+        closed, opened = ({k: v for k, v in groups[lowered[g]].items() if k not in NO_RATIO} for g in ROMBERG)
+        romberg = quotient(closed, opened)
     return SwaySummary(
         by=by,
+        unit=unit,
         units=sorted({recording_units(r) for rs in labelled.values() for r in rs}, key=str),
         recording_ids={label: [r.id for r in labelled[label]] for label in sorted(labelled)},
         unlabelled=unlabelled,
         comparison=compare_groups(groups),
         romberg=romberg,
+        not_estimated=not_estimated,
     )
 
 
@@ -124,6 +182,8 @@ def sway_out(session: Session, row: RecordingRow, options: SwayOptions, *, spect
             "trim_end_s": options.trim_end_s,
         },
         descriptors={k: v if math.isfinite(v) else None for k, v in measures.descriptors().items()},
+        not_estimated=measures.not_estimated,
+        caveats=measures.caveats,
         methods=METHODS,
         spectra=Spectra(
             frequencies=measures.frequencies.tolist(),
@@ -165,6 +225,7 @@ def sway_summary_out(
     return SwaySummaryOut(
         demonstrator_id=demonstrator.id,
         by=by,
+        unit=summary.unit,
         units=summary.units,
         groups=[
             SwayGroup(
@@ -181,5 +242,6 @@ def sway_summary_out(
         ],
         romberg=None if summary.romberg is None else estimates(summary.romberg),
         unlabelled=summary.unlabelled,
+        not_estimated=summary.not_estimated,
         method=f"{CONFIDENCE:.0%} percentile bootstrap over trials, {N_RESAMPLES} resamples, seeded",
     )

@@ -1,6 +1,6 @@
 """Quiet standing over HTTP: standing uploads of every kind stored whole, their sway measures (the published
-values of a public balance data set), trials compared by a metadata label, and every real C3D of the shared
-corpus giving a recording or the 422 its reason calls for."""
+values of a public balance data set), trials compared by a metadata label in one length unit, and every real
+C3D of the shared corpus giving a recording or the 422 its reason calls for."""
 
 from __future__ import annotations
 
@@ -20,10 +20,11 @@ from tests.service.helpers import created, make_demonstrator
 from tests.shared_data import shared_data
 
 TOLERANCE = {
-    "area95": ("COParea", 0.01),
-    "mean_velocity": ("COPvelo", 0.01),
-    "mean_frequency": ("COPmfreq", 0.02),
+    "area95": ("COParea", 1e-6),
+    "mean_velocity": ("COPvelo", 1e-6),
+    "mean_frequency": ("COPmfreq", 1e-6),
 }
+"""Relative tolerance against the data set's own values, the COP stored as float32."""
 
 
 def upload(
@@ -41,11 +42,41 @@ def sway(client: TestClient, auth: dict[str, str], rec_id: str, **query: Any) ->
     return client.get(f"/v1/recordings/{rec_id}/sway", params=query, headers=auth)
 
 
-def random_walk(n: int = 1000, rate: float = 100.0, seed: int = 0) -> list[dict[str, float]]:
-    """A COP wandering about a point, as JSON samples (metres)."""
+def random_walk(
+    n: int = 1000, rate: float = 100.0, seed: int = 0, scale: float = 1.0
+) -> list[dict[str, float]]:
+    """A COP wandering about a point, as JSON samples (metres, times ``scale``)."""
     rng = np.random.default_rng(seed)
-    xy = np.cumsum(rng.normal(0, 1e-4, (n, 2)), axis=0) * 0.5
+    xy = np.cumsum(rng.normal(0, 1e-4, (n, 2)), axis=0) * 0.5 * scale
     return [{"t": k / rate, "x": float(x), "y": float(y)} for k, (x, y) in enumerate(xy)]
+
+
+def standing_trials(
+    client: TestClient, auth: dict[str, str], trials: list[tuple[str, str | None, float]]
+) -> tuple[str, list[str]]:
+    """A demonstrator with 20-s standing trials of (vision, units, scale), trial k from seed k with its lengths
+    times scale; its id and the recordings' ids."""
+    dem = make_demonstrator(client, auth)
+    url = f"/v1/demonstrators/{dem['id']}/recordings"
+    ids = []
+    for k, (vision, units, scale) in enumerate(trials):
+        body: dict[str, Any] = {
+            "protocol": "standing",
+            "samples": random_walk(2000, seed=k, scale=scale),
+            "metadata": {"vision": vision},
+        } | ({"units": units} if units else {})
+        ids.append(created(client.post(url, json=body, headers=auth))["id"])
+    return dem["id"], ids
+
+
+def sway_summary(client: TestClient, auth: dict[str, str], dem_id: str, by: str = "vision") -> Any:
+    """GET the demonstrator's sway summary."""
+    return client.get(f"/v1/demonstrators/{dem_id}/sway-summary", params={"by": by}, headers=auth)
+
+
+def group_mean(summary: dict[str, Any], label: str, name: str) -> Any:
+    """A group's mean of a measure in a sway summary."""
+    return next(g for g in summary["groups"] if g["label"] == label)["measures"][name]["value"]
 
 
 def problem(response: Any) -> dict[str, str]:
@@ -82,7 +113,8 @@ def test_hbedb_trials_uploaded_as_standing_give_the_published_measures_and_compa
         assert out["tasks"] == [] and out["settings"]["bounds_from"] == "samples"
         measured = created(sway(client, auth, out["id"]), 200)
         assert measured["units"] == "cm" and measured["n_samples"] == 6000
-        assert measured["duration_s"] == pytest.approx(60.0, rel=1e-4)
+        assert measured["duration_s"] == pytest.approx(60.0, rel=1e-9)
+        assert measured["rate_hz"] == pytest.approx(100.0, rel=1e-9) and measured["not_estimated"] == {}
         for name, (column, tolerance) in TOLERANCE.items():
             assert measured["descriptors"][name] == pytest.approx(float(row[column]), rel=tolerance), name
         assert set(TOLERANCE) <= set(measured["methods"])
@@ -204,11 +236,13 @@ REASONS = re.compile(
 
 
 def finite_contract_measures(client: TestClient, auth: dict[str, str], rec_id: str) -> dict[str, Any]:
-    """The recording's sway answer, after checking its contract measures are finite."""
+    """The recording's sway answer, after checking its contract measures are finite (the mean frequency of a
+    stretch under 20 s with its caveat)."""
     measured = created(sway(client, auth, rec_id), 200)
     for name in TOLERANCE:
         value = measured["descriptors"][name]
         assert value is not None and math.isfinite(value) and value >= 0, (name, value)
+    assert ("mean_frequency" in measured["caveats"]) == (measured["duration_s"] < 20), measured
     return measured
 
 
@@ -315,3 +349,74 @@ def test_a_movements_recording_has_sway_measures_too(client: TestClient, auth: d
     assert measured["descriptors"]["range_x"] == pytest.approx(0.15, rel=1e-3)
     assert measured["descriptors"]["mean_velocity"] == pytest.approx(4 * 0.15 / 8, rel=0.01)
     assert measured["descriptors"]["mean_frequency_y"] is None  # y never moves: no power to weigh
+
+
+def test_trials_in_cm_and_mm_are_compared_in_one_unit(client: TestClient, auth: dict[str, str]) -> None:
+    """One closed-eyes trial uploaded in mm, the same samples as another demonstrator's in cm: the same
+    summary in cm (areas by the square), not a quotient 100 times off."""
+    trials: list[tuple[str, str | None, float]] = [
+        ("closed", "cm", 1.0),
+        ("open", "cm", 1.0),
+        ("open", "cm", 1.0),
+    ]
+    in_cm, _ = standing_trials(client, auth, [*trials, ("closed", "cm", 1.0)])
+    mixed, _ = standing_trials(client, auth, [*trials, ("closed", "mm", 10.0)])
+    reference = created(sway_summary(client, auth, in_cm), 200)
+    summary = created(sway_summary(client, auth, mixed), 200)
+    for name in ("area95", "mean_velocity", "rms", "mean_frequency"):
+        expected = reference["romberg"][name]["value"]
+        assert summary["romberg"][name]["value"] == pytest.approx(expected, rel=1e-5), name
+        closed = group_mean(summary, "closed", name)
+        assert closed == pytest.approx(group_mean(reference, "closed", name), rel=1e-5), name
+    assert summary["unit"] == "cm" and summary["units"] == ["cm", "mm"]
+    all_mm, _ = standing_trials(client, auth, [("closed", "mm", 10.0), ("open", "m", 0.01)])
+    assert created(sway_summary(client, auth, all_mm), 200)["unit"] == "mm"  # a tie: the finer unit
+
+
+def test_trials_with_and_without_a_unit_are_a_409_naming_those_without(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    dem, ids = standing_trials(client, auth, [("closed", "cm", 1.0), ("open", None, 1.0)])
+    answer = sway_summary(client, auth, dem)
+    assert answer.status_code == 409 and answer.headers["content-type"].startswith("application/problem+json")
+    body = answer.json()
+    assert ids[1] in body["detail"] and "`units`" in body["detail"]
+    assert [e["recording_id"] for e in body["errors"]] == [ids[1]]
+    dem, ids = standing_trials(client, auth, [("closed", "cm", 1.0), ("open", "in", 1.0)])
+    body = sway_summary(client, auth, dem).json()
+    assert body["status"] == 409 and [e["recording_id"] for e in body["errors"]] == [ids[1]]
+
+
+def test_the_romberg_quotient_leaves_out_the_ellipse_angle(client: TestClient, auth: dict[str, str]) -> None:
+    dem, _ = standing_trials(client, auth, [("closed", "cm", 1.0), ("open", "cm", 1.0)])
+    summary = created(sway_summary(client, auth, dem), 200)
+    assert (
+        "ellipse_angle" in summary["groups"][0]["measures"]
+        and "ellipse_angle" in summary["differences"][0]["measures"]
+    )
+    assert "ellipse_angle" not in summary["romberg"] and "area95" in summary["romberg"]
+
+
+def test_a_trial_under_20_s_answers_its_frequency_measures_with_a_caveat(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    """The 8 samples (7 ms) of a C3D test file, and a 10-s trial: every contract measure, the frequencies
+    flagged."""
+    dem = make_demonstrator(client, auth)
+    data = (shared_data("c3d") / "FP_Type3.c3d").read_bytes()
+    plate = created(upload(client, auth, dem["id"], "FP_Type3.c3d", data, protocol="standing"))
+    measured = created(sway(client, auth, plate["id"]), 200)
+    assert measured["n_samples"] == 8 and measured["descriptors"]["area95"] > 0
+    frequencies = ("mean_frequency", "mean_frequency_x", "mean_frequency_y", "f95", "f95_x", "f95_y")
+    assert all(measured["descriptors"][name] > 0 for name in frequencies)
+    assert set(measured["caveats"]) == set(frequencies) and measured["not_estimated"] == {}
+    assert "shorter than the 20 s" in measured["caveats"]["mean_frequency"]
+    url = f"/v1/demonstrators/{dem['id']}/recordings"
+    for vision, n in (("open", 1000), ("closed", 2000)):
+        body = {"protocol": "standing", "samples": random_walk(n), "metadata": {"vision": vision}}
+        created(client.post(url, json=body, headers=auth))
+    summary = created(sway_summary(client, auth, dem["id"]), 200)
+    groups = {g["label"]: g["measures"] for g in summary["groups"]}
+    assert groups["open"]["mean_frequency"]["value"] > 0 and groups["closed"]["mean_frequency"]["value"] > 0
+    assert summary["romberg"]["mean_frequency"]["value"] > 0 and summary["romberg"]["area95"]["value"] > 0
+    assert summary["not_estimated"] == {} and summary["unlabelled"] == [plate["id"]]

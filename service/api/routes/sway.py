@@ -38,7 +38,8 @@ TrimEndQuery = Annotated[float, Query(description="Seconds left out at the end; 
     "unfiltered unless asked: path length, mean velocity (total and per axis), mean distance, RMS and range per "
     "axis, the 95 % prediction ellipse (area `area95`, semi-axes, angle; F quantile), sway area per second, "
     "mean and 95 % power frequency of the Welch spectra; each method named in `methods`. Lengths are in the "
-    "recording's units (metres for a plate file). `?format=png`: the COP path with its ellipse.",
+    "recording's units (metres for a plate file). Frequency measures of under 20 s analysed come with a "
+    "caveat in `caveats` (their Welch bins are over 0.1 Hz apart). `?format=png`: the COP path with its ellipse.",
     response_model=SwayOut,
     responses={
         200: {"description": "JSON, or with `?format=png` the picture.", "content": {"image/png": {}}},
@@ -70,11 +71,16 @@ def recording_sway_route(
     description="The demonstrator's `standing` recordings grouped by the value of `metadata[by]` (e.g. "
     "`by=vision`: `open`, `closed`): per group each sway measure's mean with a 95 % interval, the differences "
     "between groups (b − a for every pair in label order) with intervals, and for `by=vision` the Romberg "
-    "quotient (closed / open). Intervals: percentile bootstrap over trials (scipy.stats.bootstrap, seeded); a "
+    "quotient (closed / open; none for the ellipse angle). Lengths are in one `unit`: trials in m, cm and mm "
+    "are converted. Intervals: percentile bootstrap over trials (scipy.stats.bootstrap, seeded); a "
     "group of one trial has none. Trials without the label are listed in `unlabelled`.",
     responses={
         404: {"description": "No such demonstrator in your lab (problem+json)."},
-        409: {"description": "No standing recording of the demonstrator carries the label (problem+json)."},
+        409: {
+            "description": "No standing recording of the demonstrator carries the label, or the trials' lengths "
+            "cannot be put in one unit: some without `units` beside some with, or a unit other than m, cm, mm "
+            "(problem+json naming the recordings)."
+        },
     },
 )
 def demonstrator_sway_summary(
