@@ -180,6 +180,8 @@ def validation_errors(errors: Sequence[Any], body: Any) -> Unprocessable:
         message = str(e.get("msg", "is invalid"))
         if e.get("type") == "union_tag_not_found":
             message = "is required"
+        elif e.get("type") == "extra_forbidden":
+            message = "is not a field of this body (a misspelt name?); see the schema at /openapi.json"
         value = e.get("input")
         if isinstance(value, float) and not math.isfinite(value):  # NaN fails every bound: say why
             message = f"must be a finite number, not {value}"

@@ -54,6 +54,13 @@ MetadataIn = Annotated[Metadata, AfterValidator(_small_finite_json)]
 """Metadata as uploaded: at most `METADATA_MAX_BYTES`, finite numbers only."""
 
 
+class Body(BaseModel):
+    """A request body: a field it does not know is a 422 at that field, so a misspelt optional one
+    (``task_id`` for ``task_ids``) is not silently left at its default."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
 class Resource(BaseModel):
     """Fields every resource has: its prefixed `id` (contract) and its creation time (ISO 8601 UTC)."""
 

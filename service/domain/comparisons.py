@@ -6,6 +6,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from service.domain.common import Body
+
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 
 
@@ -58,7 +60,7 @@ EXAMPLES: dict[str, Any] = {
 }
 
 
-class ComparisonIn(BaseModel):
+class ComparisonIn(Body):
     """Compare learned reward `a` with `b` on all states, or on the states visited in the demonstrations."""
 
     model_config = ConfigDict(

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
-from service.domain.common import Integer, Resource, UploadFormat
+from service.domain.common import Body, Integer, Resource, UploadFormat
 from service.store.models.demonstrators import Demonstration
 
 Index = Annotated[Integer, Field(ge=-(2**31), le=2**31 - 1)]
@@ -18,14 +18,14 @@ EXAMPLE_IN: JsonDict = {
 }
 
 
-class TrajectoryIn(BaseModel):
+class TrajectoryIn(Body):
     """One demonstration: `states[t]` is where `actions[t]` was taken; a final state may follow."""
 
     states: list[Index]
     actions: list[Index]
 
 
-class DemonstrationsIn(BaseModel):
+class DemonstrationsIn(Body):
     """A batch of trajectories, appended to the task's demonstrations (all or nothing)."""
 
     model_config = ConfigDict(json_schema_extra={"examples": [EXAMPLE_IN]})

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
-from service.domain.common import Metadata, MetadataIn, Name, Resource
+from service.domain.common import Body, Metadata, MetadataIn, Name, Resource
 from service.store.models.demonstrators import Demonstrator
 
 EXAMPLE_IN: JsonDict = {
@@ -14,7 +14,7 @@ EXAMPLE_IN: JsonDict = {
 }
 
 
-class DemonstratorIn(BaseModel):
+class DemonstratorIn(Body):
     """A person, robot or session whose inherent (baseline) reward is to be learned."""
 
     model_config = ConfigDict(json_schema_extra={"examples": [EXAMPLE_IN]})

@@ -11,7 +11,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from pydantic_core import to_json
 from sqlalchemy import Row
 
-from service.domain.common import Resource
+from service.domain.common import Body, Resource
 from service.domain.job_config import JobConfig
 from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, JobEvent
@@ -38,7 +38,7 @@ EXAMPLE_PROGRESS: dict[str, Any] = {
 }
 
 
-class JobIn(BaseModel):
+class JobIn(Body):
     """Learn the rewards of a demonstrator's tasks (all of them unless `task_ids` picks some)."""
 
     model_config = ConfigDict(

@@ -8,18 +8,18 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
-from service.domain.common import Integer, Name, Number, Resource
+from service.domain.common import Body, Integer, Name, Number, Resource
 from service.store.models.mdps import Mdp
 
 
-class DeterministicTransitions(BaseModel):
+class DeterministicTransitions(Body):
     """Deterministic transitions: `next_state[s][a]` is the state action a leads to from state s."""
 
     kind: Literal["deterministic"]
     next_state: list[list[Integer]] = Field(description="S×A table of next states (0-based).")
 
 
-class SparseTransitions(BaseModel):
+class SparseTransitions(Body):
     """Stochastic transitions as K triples: P(next[k] | s[k], a[k]) = p[k]; each (s, a) must sum to 1."""
 
     kind: Literal["sparse"]
@@ -29,7 +29,7 @@ class SparseTransitions(BaseModel):
     p: list[Number]
 
 
-class LayoutIn(BaseModel):
+class LayoutIn(Body):
     """How states tile a picture, so rewards can be drawn: state = (channel·height + y)·width + x."""
 
     width: Integer
@@ -72,7 +72,7 @@ GRID_EXAMPLE: JsonDict = {
 }
 
 
-class ExplicitMdpIn(BaseModel):
+class ExplicitMdpIn(Body):
     """An MDP given as arrays; features default to one-hot (tabular)."""
 
     model_config = ConfigDict(json_schema_extra={"examples": [EXPLICIT_EXAMPLE, SPARSE_EXAMPLE]})
@@ -89,7 +89,7 @@ class ExplicitMdpIn(BaseModel):
     layout: LayoutIn | None = None
 
 
-class GridMdpIn(BaseModel):
+class GridMdpIn(Body):
     """A grid world built server side with its layout; `velocity: true` is the paper's motion model."""
 
     model_config = ConfigDict(json_schema_extra={"examples": [GRID_EXAMPLE]})

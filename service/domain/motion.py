@@ -8,6 +8,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from service.domain.common import Body
+
 UNITS: dict[str, Any] = {
     "peak_reach": "x, y units (as uploaded)",
     "path_length": "x, y units (as uploaded)",
@@ -145,7 +147,7 @@ class MotionSummaryOut(BaseModel):
     )
 
 
-class MotionComparisonIn(BaseModel):
+class MotionComparisonIn(Body):
     """Two demonstrators of your lab (e.g. one patient's unstimulated and stimulated sessions)."""
 
     model_config = ConfigDict(extra="forbid")

@@ -8,7 +8,7 @@ from datetime import datetime
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
-from service.domain.common import Metadata, MetadataIn, Name, Number, Resource
+from service.domain.common import Body, Metadata, MetadataIn, Name, Number, Resource
 from service.store.models.demonstrators import Task, TrueReward
 
 EXAMPLE_IN: JsonDict = {
@@ -27,7 +27,7 @@ class TaskTotals:
     has_true_reward: bool = False
 
 
-class TaskIn(BaseModel):
+class TaskIn(Body):
     """A task of a demonstrator, played in one MDP of the same lab."""
 
     model_config = ConfigDict(json_schema_extra={"examples": [EXAMPLE_IN]})
@@ -82,7 +82,7 @@ class TaskOut(Resource):
         )
 
 
-class TrueRewardIn(BaseModel):
+class TrueRewardIn(Body):
     """The known reward of a simulated task: one finite number per state."""
 
     model_config = ConfigDict(json_schema_extra={"examples": [{"values": [0.0, 0.0, 1.0]}]})

@@ -8,7 +8,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from service.domain.common import Resource
+from service.domain.common import Body, Resource
 from service.store.models.webhooks import Webhook, WebhookDelivery
 
 EventName = Literal["job.succeeded", "job.failed", "job.cancelled"]
@@ -35,7 +35,7 @@ EXAMPLE_WEBHOOK: dict[str, Any] = {
 }
 
 
-class WebhookIn(BaseModel):
+class WebhookIn(Body):
     """Call ``url`` with a signed POST when one of the lab's jobs ends as one of ``events``."""
 
     model_config = ConfigDict(

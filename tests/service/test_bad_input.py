@@ -180,3 +180,17 @@ def test_metadata_too_large_or_not_finite_is_422_at_metadata_and_stores_nothing(
     assert (
         client.post("/v1/demonstrators", json={"name": "p", "metadata": ok}, headers=auth).status_code == 201
     )
+
+
+def test_a_misspelt_field_is_422_at_it_rather_than_left_at_its_default(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    task = make_task(client, auth)
+    body = {"demonstrator_id": task["demonstrator_id"], "task_id": [task["id"]]}  # for task_ids
+    response = client.post("/v1/jobs", json=body, headers=auth)
+    assert response.status_code == 422, response.text
+    (error,) = response.json()["errors"]
+    assert error["pointer"] == "/task_id" and "misspelt" in error["message"]
+    grid = {"kind": "grid", "name": "g", "width": 3, "height": 3, "gamma": 0.9, "velocty": True}
+    assert client.post("/v1/mdps", json=grid, headers=auth).json()["errors"][0]["pointer"] == "/velocty"
+    assert client.get("/v1/jobs", headers=auth).json()["data"] == []
