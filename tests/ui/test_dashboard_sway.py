@@ -27,11 +27,11 @@ def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Served]:
         yield served
 
 
-def standing_trial(seed: int, spread_cm: float) -> list[dict[str, float]]:
-    """20 s at 50 Hz of a COP wandering about a point, in cm."""
+def standing_trial(seed: int, spread_cm: float, n: int = 1000) -> list[dict[str, float]]:
+    """`n` samples at 50 Hz (20 s by default) of a COP wandering about a point, in cm."""
     rng = np.random.default_rng(seed)
-    xy = np.zeros((1000, 2))
-    for k in range(1, 1000):
+    xy = np.zeros((n, 2))
+    for k in range(1, n):
         xy[k] = 0.97 * xy[k - 1] + rng.normal(0, spread_cm * 0.2, 2)
     return [{"t": k / 50, "x": float(x), "y": float(y)} for k, (x, y) in enumerate(xy)]
 
@@ -49,7 +49,7 @@ def test_dashboard_shows_a_standing_trials_sway_and_its_picture_and_compares_vis
             "name": f"trial {k + 1}",
             "units": "cm",
             "metadata": {"vision": vision},
-            "samples": standing_trial(k, spread),
+            "samples": standing_trial(k, spread, n=500 if k == 0 else 1000),  # the first 10 s
         }
         ids.append(ok(http.post(f"/v1/demonstrators/{dem['id']}/recordings", json=body))["id"])
     sway = ok(http.get(f"/v1/recordings/{ids[-1]}/sway"), 200)  # newest first: the panel opens on it
@@ -84,6 +84,10 @@ def test_dashboard_shows_a_standing_trials_sway_and_its_picture_and_compares_vis
         "() => { const img = document.querySelector('#sway-picture img');"
         " return img && img.complete && img.naturalWidth > 0; }"
     )
+    # A 10-s trial: its frequencies carry the API's caveat, starred, the reason under the table.
+    assert page.locator(".sway-measures tr[data-measure='mean_frequency'] td").nth(0).inner_text().endswith(" *")
+    reason = ok(http.get(f"/v1/recordings/{ids[0]}/sway"), 200)["caveats"]["mean_frequency"]
+    assert page.locator("[data-role='sway-caveat']").inner_text() == f"* {reason}"
     page.locator("#sway").scroll_into_view_if_needed()
     page.screenshot(path=ARTIFACTS / "9-sway.png")
     assert errors == []

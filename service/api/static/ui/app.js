@@ -1155,15 +1155,25 @@ async function showSwayTrial(recordingId) {
   try {
     const sway = await getJson(`/v1/recordings/${encodeURIComponent(recordingId)}/sway`);
     if (!current()) return;
+    // A measure the API flags (coarse: `caveats`; null: `not_estimated`) carries a star and its reason.
+    const swayNote = (key) => sway.caveats?.[key] ?? sway.not_estimated?.[key];
+    const notes = [...new Set(SWAY_MEASURES.map(([key]) => swayNote(key)).filter(Boolean))];
     $("sway-measures").replaceChildren(
       el(
         "table",
         { class: "readout sway-measures" },
         el("tbody", {}, SWAY_MEASURES.map(([key, label, kind]) =>
-          el("tr", { "data-measure": key }, el("th", {}, label), el("td", { class: "num" }, fmt(sway.descriptors[key])), el("td", { class: "meta" }, swayUnit(kind, sway.units))),
+          el(
+            "tr",
+            { "data-measure": key },
+            el("th", {}, label),
+            el("td", { class: "num", title: swayNote(key) ?? "" }, fmt(sway.descriptors[key]) + (swayNote(key) ? " *" : "")),
+            el("td", { class: "meta" }, swayUnit(kind, sway.units)),
+          ),
         )),
       ),
       el("p", { class: "sub" }, `${sway.n_samples} samples at ${Number(sway.rate_hz.toPrecision(6))} Hz over ${fmt(sway.duration_s, 3)} s`),
+      notes.length ? el("p", { class: "caveat", "data-role": "sway-caveat" }, `* ${notes.join("; ")}`) : null,
     );
     loadImage(img, "sway", current, `/v1/recordings/${encodeURIComponent(recordingId)}/sway?format=png`);
   } catch (error) {
