@@ -229,13 +229,16 @@ class AsyncClient:
         plate: Mapping[str, Any] | None = None,
         protocol: Protocol = "movements",
         metadata: Mapping[str, Any] | None = None,
+        units: str | None = None,
     ) -> dict[str, Any]:
         """`POST /v1/demonstrators/{id}/recordings` with a recording file: a CSV of centre-of-pressure samples
         (``t,x,y`` and optionally ``instruction``), a C3D file, or a CSV of plate forces and moments (``plate``
         says how to read a force-plate file; docs/motion.md). ``protocol="movements"`` cuts out-and-back
         movements onto the velocity grid ``mdp_id`` within ``bounds`` (``x_min``, ``x_max``, ``y_min``,
         ``y_max``); ``"standing"`` stores a quiet-standing trial whole, labelled by ``metadata`` (e.g.
-        ``{"vision": "closed"}``). Returns the recording."""
+        ``{"vision": "closed"}``). ``units`` is the length unit of the COP samples (e.g. ``"cm"``; a CSV header
+        such as ``COPx[cm]`` may give it instead; a force-plate file's must be the file's own or ``"m"``). Returns the
+        recording."""
         return await self._call(
             ops.upload_recording(
                 demonstrator_id,
@@ -246,6 +249,7 @@ class AsyncClient:
                 plate=plate,
                 protocol=protocol,
                 metadata=metadata,
+                units=units,
             )
         )
 

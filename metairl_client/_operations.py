@@ -248,6 +248,7 @@ def upload_recording(
     plate: Mapping[str, Any] | None,
     protocol: Protocol,
     metadata: Mapping[str, Any] | None,
+    units: str | None,
 ) -> Call[dict[str, Any]]:
     """`POST /v1/demonstrators/{id}/recordings` with a recording file (multipart)."""
     content = file.read_bytes() if isinstance(file, Path) else file
@@ -256,6 +257,7 @@ def upload_recording(
     form |= {"bounds": json.dumps(dict(bounds))} if bounds else {}
     form |= ({"name": name} if name else {}) | ({"plate": json.dumps(dict(plate))} if plate else {})
     form |= {"metadata": json.dumps(dict(metadata))} if metadata else {}
+    form |= {"units": units} if units is not None else {}
     files = {"file": (filename, content, "application/octet-stream")}
     path = f"/v1/demonstrators/{_segment(demonstrator_id)}/recordings"
     return Call("POST", path, _object, files=files, data=form)

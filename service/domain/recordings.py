@@ -92,8 +92,9 @@ class RecordingOptions(BaseModel):
     units: str | None = Field(
         default=None,
         max_length=16,
-        description="COP samples only: the length unit of x and y (e.g. `cm`), reported with the sway measures; "
-        "a force-plate file's COP is in metres.",
+        description="The length unit of x and y (e.g. `cm`), reported with the sway measures; a COP CSV's header "
+        "may give it instead (`COPx[cm]`). A force-plate file's COP is stored in metres: a `units` sent with one "
+        "must name the file's own unit (a C3D's `POINT:UNITS`) or m, else 422.",
     )
     bounds: Bounds | None = Field(
         default=None,

@@ -1,13 +1,14 @@
 """Recording files: COP samples in metres from a C3D or a CSV of plate forces and moments, or a COP CSV as it is.
 
-A file is a C3D by its first bytes (or a name ending in ``.c3d``), a plate export if its CSV header names any of
-Fx, Fy, Fz, Mx, My, Mz, else a CSV of COP samples (`recording_samples.csv_samples`). Conventions, units and the
-instructions of a C3D (its events) are in docs/motion.md, "Force-plate files".
+A file is a C3D by its first bytes (or a name ending in ``.c3d``); a CSV whose header names the COP (x and y,
+or COPx and COPy) is a CSV of COP samples (`recording_samples.csv_samples`), whatever other columns it has (a
+plate's export with both gives the COP its software computed); else a plate export if its header names any of
+Fx, Fy, Fz, Mx, My, Mz, else a CSV of COP samples. Conventions, units and the instructions of a C3D (its
+events) are in docs/motion.md, "Force-plate files".
 """
 
 from __future__ import annotations
 
-import csv
 from collections.abc import Sequence
 from typing import Any
 
@@ -27,11 +28,17 @@ from metairl_engine.motion.recording import NO_INSTRUCTION, canonical_instructio
 from service.domain.common import UploadFormat
 from service.domain.recordings import PlateIn, Protocol
 from service.files.c3d import C3dFile, Platform, file_problem, is_c3d, read_c3d
-from service.files.recording_samples import Samples, csv_samples, located, read_columns
+from service.files.csv_rows import csv_error, csv_header
+from service.files.recording_samples import ALIASES, Samples, csv_samples, located, read_columns
 from service.problems import Unprocessable
 
 FORCES = ("fx", "fy", "fz")
 MOMENTS = ("mx", "my", "mz")
+COP = ("x", "y")
+NEWTONS = ("n", "newton", "newtons")
+"""Units a force column may declare: forces are in N."""
+MOMENT_UNITS = {"nm": "Nm", "ncm": "Ncm", "nmm": "Nmm"}
+"""A moment column's unit (letters only, any case: ``N.mm``, ``N·m``) → `PlateIn.moment_unit`."""
 CSV_ONLY = ("rate_hz", "moment_unit", "origin_depth")
 """`PlateIn` fields that only a CSV of forces and moments uses."""
 C3D_ONLY = ("platform", "events")
@@ -48,27 +55,40 @@ def _invalid(pointer: str, message: str) -> Unprocessable:
 
 
 def file_samples(
-    filename: str | None, data: bytes, plate: PlateIn | None, protocol: Protocol = "movements"
+    filename: str | None,
+    data: bytes,
+    plate: PlateIn | None,
+    protocol: Protocol = "movements",
+    units: str | None = None,
 ) -> Samples:
-    """The COP samples of an uploaded file, whichever of the three kinds it is; `plate` only for a plate file.
-    A ``standing`` upload ignores C3D events by default and keeps the longest loaded stretch of a plate file."""
+    """The COP samples of an uploaded file, whichever of the three kinds it is; `plate` only for a plate file,
+    `units` the request's (a plate file's must name its own length unit). A ``standing`` upload ignores C3D
+    events by default and keeps the longest loaded stretch of a plate file."""
     if is_c3d(data) or (filename or "").lower().endswith(".c3d"):
-        return c3d_samples(data, plate or PlateIn(), protocol)
-    if _header(data) & {*FORCES, *MOMENTS}:
-        return forces_samples(data, plate or PlateIn(), protocol)
+        return c3d_samples(data, plate or PlateIn(), protocol, units)
+    names = set(csv_header(data, ALIASES).names)
+    plate_columns = names & {*FORCES, *MOMENTS}
+    if plate_columns and not set(COP) <= names:
+        return forces_samples(data, plate or PlateIn(), protocol, units)
     if plate is not None:
+        also = ", whose COP columns are read as they are (its force and moment columns are ignored)"
         raise _invalid(
             "/plate",
-            "applies to force-plate files only (a C3D, or a CSV with columns Fx, Fy, Fz, Mx, My, Mz); this "
-            "file is a CSV of COP samples (t, x, y)",
+            "applies to force-plate files only (a C3D, or a CSV with columns Fx, Fy, Fz, Mx, My, Mz and no "
+            f"COP columns); this file is a CSV of COP samples (t, x, y){also if plate_columns else ''}",
         )
-    return csv_samples(data)
+    return csv_samples(data, units)
 
 
-def _header(data: bytes) -> set[str]:
-    """The lower-cased column names of a CSV's first line (nothing if it is not text)."""
-    first = data.split(b"\n", 1)[0].decode("utf-8-sig", errors="replace")
-    return {cell.strip().lower() for cell in next(csv.reader([first]), [])}
+def _own_unit(units: str | None, unit: str, where: str) -> None:
+    """422 at /units if the request's `units` names neither `unit`, the length unit a plate file declares
+    (`where` says how), nor metres, the unit its COP is stored in: any other would misread its numbers."""
+    if units is not None and length_unit(units) not in (unit, "m"):
+        raise _invalid(
+            "/units",
+            f"is {units!r} but the file gives its own length unit: {where}; its COP is stored in metres. "
+            f"Leave units out, or send {unit} or m",
+        )
 
 
 def _only_for(plate: PlateIn, fields: Sequence[str], kind: str) -> None:
@@ -78,10 +98,13 @@ def _only_for(plate: PlateIn, fields: Sequence[str], kind: str) -> None:
             raise _invalid(f"/plate/{name}", f"applies to {kind} only")
 
 
-def c3d_samples(data: bytes, plate: PlateIn, protocol: Protocol = "movements") -> Samples:
+def c3d_samples(
+    data: bytes, plate: PlateIn, protocol: Protocol = "movements", units: str | None = None
+) -> Samples:
     """The COP of one of the C3D's force platforms (`plate.platform`, else the one carrying the most load),
     about the plate's centre, in metres, at the analog rate; instructions from the file's events unless
-    `plate.events` (by default for ``standing``) says to ignore them. 422 naming the reason and the field."""
+    `plate.events` (by default for ``standing``) says to ignore them. 422 naming the reason and the field,
+    and at /units for `units` other than the C3D's own length unit."""
     _only_for(plate, CSV_ONLY, "CSV files of forces and moments")
     c3d = read_c3d(data)
     if not c3d.platforms:
@@ -113,6 +136,8 @@ def c3d_samples(data: bytes, plate: PlateIn, protocol: Protocol = "movements") -
             "of metres, centimetres or millimetres)"
         )
     unit, unit_reason = _plausible_unit(unit, float(np.ptp(p.corners[plane], axis=1).max()))
+    declared = p.position_unit.replace("\0", "").strip()
+    _own_unit(units, unit, f"POINT:UNITS {declared!r}, read as {unit}")
     centre = p.corners[plane].mean(axis=1, keepdims=True)
     cop = (p.center_of_pressure[plane] - centre).T * LENGTH_UNITS[unit]
     t = c3d.start_s + np.arange(cop.shape[0]) / c3d.analog_rate
@@ -120,7 +145,7 @@ def c3d_samples(data: bytes, plate: PlateIn, protocol: Protocol = "movements") -
     read = {
         "rate_hz": c3d.analog_rate,
         "rate_source": c3d.analog_rate_source,
-        "position_unit": p.position_unit.replace("\0", "").strip(),
+        "position_unit": declared,
         "position_unit_read_as": unit,
         "position_unit_reason": unit_reason,
         "force_unit": p.force_unit.strip(),
@@ -196,11 +221,20 @@ def event_instructions(c3d: C3dFile, t: np.ndarray) -> list[str | None] | None:
     return [ordered[k][0] if k >= 0 else None for k in latest]
 
 
-def forces_samples(data: bytes, plate: PlateIn, protocol: Protocol = "movements") -> Samples:
-    """The COP of a CSV with columns Fx, Fy, Fz (N), Mx, My, Mz (`plate.moment_unit`) and ``t`` (s) or
-    `plate.rate_hz`, about the plate's measurement origin, in metres; 422 naming a missing column or bad cell."""
+def forces_samples(
+    data: bytes, plate: PlateIn, protocol: Protocol = "movements", units: str | None = None
+) -> Samples:
+    """The COP of a CSV with columns Fx, Fy, Fz (N), Mx, My, Mz (`plate.moment_unit`, else the unit their
+    header gives, ``Mx[Nmm]``) and ``t`` (s) or `plate.rate_hz`, about the plate's measurement origin, in
+    metres; 422 naming a missing column or bad cell, a unit the header gives that contradicts `plate` or
+    `units`, or a force unit other than N."""
     _only_for(plate, C3D_ONLY, "C3D files")
     columns = read_columns(data, required=(*FORCES, *MOMENTS), optional=("t",))
+    plate = plate.model_copy(update={"moment_unit": _moment_unit(columns.units, plate)})
+    length = plate.moment_unit.removeprefix("N")
+    _own_unit(
+        units, length, f"the moments' unit {plate.moment_unit} (plate.moment_unit), so the COP's is {length}"
+    )
     force = np.array([columns.values[c] for c in FORCES], dtype=np.float64).reshape(3, -1).T
     moment = np.array([columns.values[c] for c in MOMENTS], dtype=np.float64).reshape(3, -1).T
     has_t = "t" in columns.values
@@ -214,7 +248,6 @@ def forces_samples(data: bytes, plate: PlateIn, protocol: Protocol = "movements"
         raise _invalid("/plate/rate_hz", "the CSV has a t column: give the sampling rate only without one")
     else:
         t = np.arange(len(force)) / plate.rate_hz
-    length = plate.moment_unit.removeprefix("N")
     cop = wrench_cop(force, moment, z_up=plate.axes.z_up, origin_depth=plate.origin_depth)
     return _plate_samples(
         t,
@@ -227,6 +260,31 @@ def forces_samples(data: bytes, plate: PlateIn, protocol: Protocol = "movements"
         lines=columns.lines,
         read=plate.model_dump(exclude=set(C3D_ONLY)),
     )
+
+
+def _moment_unit(declared: dict[str, str], plate: PlateIn) -> str:
+    """The moments' unit: `plate.moment_unit` if given, else the one the header gives Mx, My, Mz (``Mx[Nmm]``),
+    else ``Nm``; 422 at /file for a force unit other than N or moment units the header gives that are not one
+    of `MOMENT_UNITS`, at /plate/moment_unit for one that contradicts the header."""
+    for c in FORCES:
+        if c in declared and declared[c].lower() not in NEWTONS:
+            raise csv_error([("/file", f"CSV line 1: {c} is in {declared[c]!r}; give forces in N")])
+    found = {
+        MOMENT_UNITS.get("".join(filter(str.isalpha, declared[c])).lower()) for c in MOMENTS if c in declared
+    }
+    if None in found or len(found) > 1:
+        named = ", ".join(f"{c} in {declared[c]!r}" for c in MOMENTS if c in declared)
+        raise csv_error(
+            [("/file", f"CSV line 1: {named}; give the moments in one of {', '.join(MOMENT_UNITS.values())}")]
+        )
+    if not found:
+        return plate.moment_unit
+    header = str(found.pop())
+    if "moment_unit" in plate.model_fields_set and plate.moment_unit != header:
+        raise _invalid(
+            "/plate/moment_unit", f"is {plate.moment_unit} but the CSV header gives the moments in {header}"
+        )
+    return header
 
 
 def _plate_samples(

@@ -103,8 +103,8 @@ def test_csv_upload_with_final_state_and_shuffled_rows(
             "/trajectories/0/states/1",
             "CSV line 3",
         ),
-        ("trajectory,step,state,action\na,0,0,1\na,1,x,1\n", "", "CSV line 3: state 'x'"),
-        ("trajectory,step,state\na,0,0\n", "", "missing action"),
+        ("trajectory,step,state,action\na,0,0,1\na,1,x,1\n", "/file", "CSV line 3: state 'x'"),
+        ("trajectory,step,state\na,0,0\n", "/file", "missing action"),
         (
             "trajectory,step,state,action\na,0,0,1\na,2,1,\n",
             "/trajectories/0",
@@ -116,7 +116,7 @@ def test_csv_upload_with_final_state_and_shuffled_rows(
             "CSV line 2",
         ),
         ("trajectory,step,state,action\n", "/trajectories", "no data rows"),
-        ("trajectory,step,state,action\nA,0,0,1\nA,1,1,1,7\nA,2,2,\n", "", "CSV line 3: has 5 cells"),
+        ("trajectory,step,state,action\nA,0,0,1\nA,1,1,1,7\nA,2,2,\n", "/file", "CSV line 3: has 5 cells"),
     ],
 )
 def test_invalid_csv_is_422_with_its_line(

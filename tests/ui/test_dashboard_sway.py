@@ -85,7 +85,9 @@ def test_dashboard_shows_a_standing_trials_sway_and_its_picture_and_compares_vis
         " return img && img.complete && img.naturalWidth > 0; }"
     )
     # A 10-s trial: its frequencies carry the API's caveat, starred, the reason under the table.
-    assert page.locator(".sway-measures tr[data-measure='mean_frequency'] td").nth(0).inner_text().endswith(" *")
+    assert (
+        page.locator(".sway-measures tr[data-measure='mean_frequency'] td").nth(0).inner_text().endswith(" *")
+    )
     reason = ok(http.get(f"/v1/recordings/{ids[0]}/sway"), 200)["caveats"]["mean_frequency"]
     assert page.locator("[data-role='sway-caveat']").inner_text() == f"* {reason}"
     page.locator("#sway").scroll_into_view_if_needed()

@@ -28,7 +28,7 @@ from service.domain.recordings import (
 )
 from service.files.csv_rows import check_csv_memory
 from service.files.force_plates import file_samples
-from service.files.recording_samples import SAMPLE_BYTES, form_options, json_samples
+from service.files.recording_samples import SAMPLE_BYTES, check_float32, form_options, json_samples
 from service.results.downloads import Download
 from service.sizes import check_grid
 from service.store import recordings
@@ -47,9 +47,10 @@ FILE_FORM = {
         "file": {
             "type": "string",
             "format": "binary",
-            "description": "One of: a CSV with header t,x,y and optionally instruction; a C3D file (recognised "
-            "by its bytes or a .c3d name) with a force platform; a CSV with header Fx,Fy,Fz,Mx,My,Mz, optionally "
-            "t (s) and instruction. One row or frame per sample, in time order.",
+            "description": "One of: a CSV with header t,x,y (or time, COPx, COPy; a unit may follow a name, "
+            "`COPx[cm]`) and optionally instruction; a C3D file (recognised by its bytes or a .c3d name) with a "
+            "force platform; a CSV with header Fx,Fy,Fz,Mx,My,Mz, optionally t (s) and instruction, and no COP "
+            "columns. Comma-, tab- or semicolon-separated. One row or frame per sample, in time order.",
         },
         "bounds": {
             "type": "string",
@@ -60,7 +61,11 @@ FILE_FORM = {
             "type": "string",
             "description": f'{JSON_OBJECT} the lab\'s labels, e.g. {{"vision": "closed"}}.',
         },
-        "units": {"type": "string", "description": "COP CSV only: the length unit of x and y, e.g. `cm`."},
+        "units": {
+            "type": "string",
+            "description": "The length unit of x and y, e.g. `cm`; a COP CSV's header may give it instead "
+            "(`COPx[cm]`). A plate file's must be the file's own or `m` (its COP is stored in metres).",
+        },
         "mdp_id": {"type": "string", "description": "A velocity-grid MDP of your lab (or give grid)."},
         "grid": {"type": "string", "description": f"{JSON_OBJECT} width, height, gamma."},
         "discretise": {"type": "string", "description": f"{JSON_OBJECT} smooth_s."},
@@ -116,10 +121,13 @@ async def upload_recording(
         data = await body.file.read()
         check_csv_memory(data, row_bytes=SAMPLE_BYTES, settings=request.app.state.settings)
         samples = await run_in_threadpool(
-            file_samples, body.file.filename, data, options.plate, options.protocol
+            file_samples, body.file.filename, data, options.plate, options.protocol, options.units
         )
+        if samples.plate is None and samples.units != options.units:  # a COP CSV's header gave the unit
+            options = options.model_copy(update={"units": samples.units})
     else:
         options, samples = body, json_samples(body)
+    check_float32(samples)
     if options.grid is not None:  # a grid the upload may create: the limits of POST /v1/mdps
         g = options.grid
         check_grid(
