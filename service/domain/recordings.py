@@ -13,7 +13,7 @@ from pydantic.json_schema import JsonDict, JsonValue
 
 from metairl_engine.motion.force_plate import MIN_FZ, PlateAxes
 from metairl_engine.motion.recording import Bounds, DiscretiseSettings, SegmentSettings
-from service.domain.common import Number, Resource, UploadFormat
+from service.domain.common import Body, Number, Resource, UploadFormat
 from service.store.models.recordings import Recording as RecordingRow
 
 PLATE_EXAMPLE: JsonDict = {"x_min": -0.2, "x_max": 0.2, "y_min": -0.2, "y_max": 0.2}
@@ -36,7 +36,7 @@ EXAMPLE_GRID_IN: JsonDict = {
 }
 
 
-class SampleIn(BaseModel):
+class SampleIn(Body):
     """One COP sample: time, position on the plate and the instruction in force (none if absent or empty)."""
 
     t: Number
@@ -47,7 +47,7 @@ class SampleIn(BaseModel):
     )
 
 
-class GridIn(BaseModel):
+class GridIn(Body):
     """A velocity grid to map the recording onto: reused if the lab already has an identical one, else created."""
 
     width: int = Field(ge=2, description="Cells across the plate (x).")
@@ -55,7 +55,7 @@ class GridIn(BaseModel):
     gamma: float = Field(default=0.9, ge=0.0, lt=1.0, description="Discount factor of the MDP.")
 
 
-class DiscretiseIn(BaseModel):
+class DiscretiseIn(Body):
     """How samples become cells (the grid size is the MDP's)."""
 
     smooth_s: float = Field(
@@ -69,7 +69,7 @@ LabelValue = Annotated[str, StringConstraints(max_length=100)] | float | bool
 MAX_LABELS = 20
 
 
-class RecordingOptions(BaseModel):
+class RecordingOptions(Body):
     """Everything about a recording except its samples (a CSV upload sends these as form fields)."""
 
     name: str | None = Field(default=None, max_length=200, description="A label for the recording.")

@@ -180,3 +180,22 @@ def test_a_c3d_with_units_other_than_its_own_or_metres_is_a_422_at_units(
 def test_an_error_of_the_whole_csv_points_at_its_file_part(client: TestClient, auth: dict[str, str]) -> None:
     (error,) = errors(upload(client, auth, "trial.csv", b"a,b,c\n1,2,3\n"))
     assert error["pointer"] == "/file" and "missing t, x, y" in error["message"]
+
+
+@pytest.mark.parametrize(
+    ("change", "pointer"),
+    [
+        ({"sample_rate": 100}, "/sample_rate"),
+        ({"samples": [{"t": 0, "x": 0, "y": 0, "z": 1}]}, "/samples/0/z"),
+    ],
+)
+def test_a_field_a_recording_does_not_know_is_a_422_at_it(
+    client: TestClient, auth: dict[str, str], change: dict, pointer: str
+) -> None:
+    dem = make_demonstrator(client, auth)
+    samples = [{"t": t, "x": x, "y": y} for t, x, y in walk().tolist()]
+    body = {"protocol": "standing", "samples": samples} | change
+    found = errors(client.post(url(dem), json=body, headers=auth))
+    assert [e["pointer"] for e in found] == [pointer] and "misspelt" in found[0]["message"]
+    (error,) = errors(upload(client, auth, "trial.csv", table(["t", "x", "y"], walk()), colour="red"))
+    assert error["pointer"] == "/colour"
