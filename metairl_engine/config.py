@@ -173,7 +173,8 @@ class FitConfig:
     """The paper's b: demonstrated actions follow softmax(b·Q(s, ·)) (paper eq. 9–10)."""
 
     hidden: tuple[int, ...] = (100, 50, 25)
-    """Hidden layer widths of each VR network and of the baseline network."""
+    """Hidden layer widths of each VR network and of the baseline network; empty: none, each network affine
+    in its inputs (the linear reward of classic feature-based IRL)."""
 
     fourier_octaves: int = field(default=0, metadata=bounds(ge=0, le=8))
     """Input encoding: each state feature x also enters the networks as sin(2^l·π·x), cos(2^l·π·x) for

@@ -17,7 +17,7 @@ from metairl_engine.networks import StackedMLP
 from metairl_engine.planning import transition_matrix
 from metairl_engine.results import Progress
 from metairl_engine.sim.terrain import make_tasks, make_world
-from tests.engine.helpers import as_sparse, small_grid, soft_demos, task
+from tests.engine.helpers import as_sparse, goal_tasks_with_features, small_grid, soft_demos, task
 
 
 def bump_reward(size: int) -> np.ndarray:
@@ -408,3 +408,12 @@ def test_each_network_is_evaluated_only_on_the_states_its_own_rows_need() -> Non
     ]
     assert [set(block.states_u[j].tolist()) for j in range(2)] == needed  # padding repeats an own state
     assert block.states_u.shape[1] == max(len(n) for n in needed) < len(needed[0] | needed[1])
+
+
+def test_no_hidden_layer_gives_a_baseline_affine_in_the_features() -> None:
+    features = np.random.default_rng(0).normal(size=(25, 3)).astype(np.float32)
+    result = fit(goal_tasks_with_features(features), FitConfig(hidden=(), max_steps=50, seed=0))
+    design = np.c_[features, np.ones(25)]
+    coef = np.linalg.lstsq(design, result.baseline, rcond=None)[0]
+    assert result.baseline.std() > 0.01
+    assert np.abs(design @ coef - result.baseline).max() < 1e-5
