@@ -65,7 +65,8 @@ class SwayOut(BaseModel):
     caveats: dict[str, str] = Field(
         default_factory=dict,
         description="Descriptors given but to be read coarsely, and why: the frequency measures of an analysed "
-        "stretch under 20 s, whose Welch bins are over 0.1 Hz apart (quiet standing sways at 0.1-0.5 Hz).",
+        "stretch under 20 s, whose Welch bins are over 0.1 Hz apart (quiet standing sways at 0.1-0.5 Hz); and "
+        "`samples`, for every measure, where some of a C3D's COP lies off its plate.",
     )
     methods: dict[str, str] = Field(description="How each measure is computed, with its source.")
     spectra: Spectra | None = Field(default=None, description="With `?spectra=true`: the Welch spectra.")

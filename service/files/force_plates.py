@@ -140,6 +140,9 @@ def c3d_samples(
     _own_unit(units, unit, f"POINT:UNITS {declared!r}, read as {unit}")
     centre = p.corners[plane].mean(axis=1, keepdims=True)
     cop = (p.center_of_pressure[plane] - centre).T * LENGTH_UNITS[unit]
+    half = np.abs(plate.axes.to_patient(np.ptp(p.corners[plane], axis=1)[None, :] / 2 * LENGTH_UNITS[unit]))[
+        0
+    ]
     t = c3d.start_s + np.arange(cop.shape[0]) / c3d.analog_rate
     events = plate.events or ("ignore" if protocol == "standing" else "instructions")
     read = {
@@ -153,6 +156,7 @@ def c3d_samples(
         "platform_choice": "given" if chosen else "most load",
         "lab_axes": {"vertical": "xyz"[normal], "x": "xyz"[plane[0]], "y": "xyz"[plane[1]]},
         "platform_loads_ns": [round(load / c3d.analog_rate, 3) for load in loads],
+        "plate_half_size_m": [round(float(h), 4) for h in half],
         "events": events,
         "n_events": len(c3d.events),
     }
@@ -310,6 +314,9 @@ def _plate_samples(
         raise located(exc, lines) from exc
     xy = plate.axes.to_patient(cop[span])
     t = np.asarray(t, dtype=np.float64)
+    if "plate_half_size_m" in read:  # a C3D gives the plate's size: say how much of the COP lies off it
+        off = (np.abs(xy) > np.asarray(read["plate_half_size_m"]) * (1 + OFF_PLATE_TOLERANCE)).any(axis=1)
+        read = read | {"off_plate_fraction": round(float(off.mean()), 4)}
     if protocol == "standing":
         others = [s for s in loaded_stretches(fz, plate.min_fz) if s != span]
         read = read | {
@@ -328,6 +335,10 @@ def _plate_samples(
         lines=None if lines is None else lines[span],
         plate=read | {"unloaded_samples": len(fz) - (span.stop - span.start)},
     )
+
+
+OFF_PLATE_TOLERANCE = 0.01
+"""A COP sample further than this fraction of a half side beyond the plate's edge counts as off the plate."""
 
 
 def _longest_stretch(fz: np.ndarray, min_fz: float) -> slice:

@@ -166,6 +166,19 @@ def sway_summary(
     )
 
 
+def off_plate_caveat(row: RecordingRow) -> dict[str, str]:
+    """``{"samples": why}`` when some of a C3D recording's COP lies off its plate (upload's ``off_plate_fraction``):
+    a foot off the plate, or a COP computed under little load, which every measure then includes."""
+    fraction = row.settings.get("plate", {}).get("off_plate_fraction", 0.0)
+    if not fraction:
+        return {}
+    half = row.settings["plate"]["plate_half_size_m"]
+    return {
+        "samples": f"{fraction:.1%} of the COP lies off the plate ({2 * half[0]:.3g} × {2 * half[1]:.3g} m): a "
+        "foot off the plate, or a COP computed under little load; every measure includes those samples"
+    }
+
+
 def sway_out(session: Session, row: RecordingRow, options: SwayOptions, *, spectra: bool) -> SwayOut:
     """The answer of ``GET /v1/recordings/{id}/sway``: measures (non-finite as null), methods and options, and
     with ``spectra`` the Welch spectra they come from."""
@@ -183,7 +196,7 @@ def sway_out(session: Session, row: RecordingRow, options: SwayOptions, *, spect
         },
         descriptors={k: v if math.isfinite(v) else None for k, v in measures.descriptors().items()},
         not_estimated=measures.not_estimated,
-        caveats=measures.caveats,
+        caveats=measures.caveats | off_plate_caveat(row),
         methods=METHODS,
         spectra=Spectra(
             frequencies=measures.frequencies.tolist(),

@@ -420,3 +420,24 @@ def test_a_trial_under_20_s_answers_its_frequency_measures_with_a_caveat(
     assert groups["open"]["mean_frequency"]["value"] > 0 and groups["closed"]["mean_frequency"]["value"] > 0
     assert summary["romberg"]["mean_frequency"]["value"] > 0 and summary["romberg"]["area95"]["value"] > 0
     assert summary["not_estimated"] == {} and summary["unlabelled"] == [plate["id"]]
+
+
+def test_a_c3d_whose_cop_leaves_its_plate_says_how_much_beside_every_measure(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    """A gait trial's COP runs past a 0.914 × 0.610 m plate (heel strike, toe off); a quiet one stays on it."""
+    dem = make_demonstrator(client, auth)
+    folder = shared_data("c3d")
+    gait = created(
+        upload(
+            client, auth, dem["id"], "g.c3d", (folder / "others__Gait.c3d").read_bytes(), protocol="standing"
+        )
+    )
+    assert gait["settings"]["plate"]["plate_half_size_m"] == [0.4572, 0.3048]
+    assert 0 < gait["settings"]["plate"]["off_plate_fraction"] < 0.05
+    caveat = created(sway(client, auth, gait["id"]), 200)["caveats"]["samples"]
+    assert "off the plate (0.914 × 0.61 m)" in caveat and caveat.startswith("1.1%")
+    quiet = (folder / "Kistler.c3d").read_bytes()
+    still = created(upload(client, auth, dem["id"], "q.c3d", quiet, protocol="standing"))
+    assert still["settings"]["plate"]["off_plate_fraction"] == 0
+    assert "samples" not in created(sway(client, auth, still["id"]), 200)["caveats"]
