@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from tests.served import Served, metairl_serve
+from tests.shared_data import shared_data
 from tests.ui.helpers import ARTIFACTS, ok, open_dashboard
 
 if TYPE_CHECKING:
@@ -92,4 +93,23 @@ def test_dashboard_shows_a_standing_trials_sway_and_its_picture_and_compares_vis
     assert page.locator("[data-role='sway-caveat']").inner_text() == f"* {reason}"
     page.locator("#sway").scroll_into_view_if_needed()
     page.screenshot(path=ARTIFACTS / "9-sway.png")
+    assert errors == []
+
+
+def test_dashboard_says_when_a_plate_files_cop_leaves_its_plate(served: Served, browser: Browser) -> None:
+    http = httpx.Client(base_url=served.url, headers={"Authorization": f"Bearer {served.key}"}, timeout=60)
+    dem = ok(http.post("/v1/demonstrators", json={"name": "gait subject"}))
+    data = (shared_data("c3d") / "others__Gait.c3d").read_bytes()
+    rec = ok(
+        http.post(
+            f"/v1/demonstrators/{dem['id']}/recordings",
+            files={"file": ("gait.c3d", data)},
+            data={"protocol": "standing"},
+        )
+    )
+    caveat = ok(http.get(f"/v1/recordings/{rec['id']}/sway"), 200)["caveats"]["samples"]
+    page, errors = open_dashboard(browser, served.url, served.key)
+    page.click(f"[data-demonstrator='{dem['id']}'] [data-action='sway']")
+    page.wait_for_selector("[data-role='sway-samples-caveat']")
+    assert page.locator("[data-role='sway-samples-caveat']").inner_text() == caveat
     assert errors == []

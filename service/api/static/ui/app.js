@@ -1174,6 +1174,7 @@ async function showSwayTrial(recordingId) {
       ),
       el("p", { class: "sub" }, `${sway.n_samples} samples at ${Number(sway.rate_hz.toPrecision(6))} Hz over ${fmt(sway.duration_s, 3)} s`),
       notes.length ? el("p", { class: "caveat", "data-role": "sway-caveat" }, `* ${notes.join("; ")}`) : null,
+      sway.caveats?.samples ? el("p", { class: "caveat", "data-role": "sway-samples-caveat" }, sway.caveats.samples) : null,
     );
     loadImage(img, "sway", current, `/v1/recordings/${encodeURIComponent(recordingId)}/sway?format=png`);
   } catch (error) {
