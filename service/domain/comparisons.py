@@ -11,18 +11,14 @@ from service.domain.common import Body
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 
 
-class RewardSide(BaseModel):
+class RewardSide(Body):
     """A learned reward of your lab (of any job and demonstrator)."""
-
-    model_config = ConfigDict(extra="forbid")
 
     reward_id: str
 
 
-class OtherSide(BaseModel):
+class OtherSide(Body):
     """Exactly one of: a learned reward, a task (its true reward), or one finite value per state."""
-
-    model_config = ConfigDict(extra="forbid")
 
     reward_id: str | None = None
     task_id: str | None = Field(default=None, description="Compare with this task's true reward.")

@@ -150,8 +150,6 @@ class MotionSummaryOut(BaseModel):
 class MotionComparisonIn(Body):
     """Two demonstrators of your lab (e.g. one patient's unstimulated and stimulated sessions)."""
 
-    model_config = ConfigDict(extra="forbid")
-
     a: str = Field(description="The reference demonstrator (`dem_…`).")
     b: str = Field(description="The demonstrator compared with it: differences are b minus a.")
 

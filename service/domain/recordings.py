@@ -107,10 +107,8 @@ class RecordingOptions(Body):
     )
 
 
-class PlateIn(BaseModel):
+class PlateIn(Body):
     """How to read a force-plate file (a C3D, or a CSV of forces and moments) into COP samples in metres."""
-
-    model_config = ConfigDict(extra="forbid")
 
     axes: PlateAxes = Field(
         default=PlateAxes(),
