@@ -170,6 +170,8 @@ def test_a_c3d_recording_stores_the_plates_cop_in_metres_about_its_centre_with_i
         "platform": 1,
         "platform_choice": "most load",
         "platform_loads_ns": [pytest.approx(fz.sum() / RATE, abs=1e-3)],
+        "plate_half_size_m": [0.2, 0.2],
+        "off_plate_fraction": 0.0,
         "events": "instructions",
         "n_events": len(events),
         "unloaded_samples": 15,
