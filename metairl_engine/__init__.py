@@ -9,7 +9,7 @@ which is callable as its function `fit`.
 
 from metairl_engine.config import FitConfig
 from metairl_engine.demos import Trajectory, validate_trajectories
-from metairl_engine.errors import Cancelled, EngineError, InvalidInput, Issue
+from metairl_engine.errors import Cancelled, Diverged, EngineError, InvalidInput, Issue
 from metairl_engine.grids import grid_mdp
 from metairl_engine.mdp import MDP, Layout, SparseTransitions
 from metairl_engine.results import FitResult, Progress, TaskData
@@ -17,6 +17,7 @@ from metairl_engine.results import FitResult, Progress, TaskData
 __all__ = [
     "MDP",
     "Cancelled",
+    "Diverged",
     "EngineError",
     "FitConfig",
     "FitResult",

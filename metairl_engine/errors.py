@@ -36,6 +36,10 @@ class Cancelled(EngineError):
     """A fit stopped because its `should_stop` callback said so."""
 
 
+class Diverged(EngineError):
+    """A fit whose loss stopped being a finite number: its settings made the optimisation blow up."""
+
+
 def check(issues: list[Issue]) -> None:
     """Raise `InvalidInput` if any issue was collected."""
     if issues:

@@ -16,6 +16,7 @@ kept are those of the step with the best held-out NLL (holdout.py explains why).
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 import types
@@ -37,7 +38,7 @@ from metairl_engine.config import (
 )
 from metairl_engine.coordinates import COORDINATE_OCTAVES, state_coordinates
 from metairl_engine.demos import validate_trajectories, with_stays_at_ends
-from metairl_engine.errors import Cancelled, InvalidInput, Issue, check
+from metairl_engine.errors import Cancelled, Diverged, InvalidInput, Issue, check
 from metairl_engine.evidence import NEXT_TO_VISITED
 from metairl_engine.holdout import (
     Steps,
@@ -781,6 +782,12 @@ def _fit_meta_irl(
         optimiser.zero_grad(set_to_none=True)
         block = (step - 1) % len(problem.blocks)  # the sharing blocks in turn
         loss, irl, shared, f = gradient_step(problem, vr, base, config, block=block)
+        if not math.isfinite(float(loss)):  # NaN or inf poisons every later step and the step kept
+            raise Diverged(
+                f"The fit diverged at step {step}: its loss became {float(loss)}. Lower config.confidence "
+                f"({config.confidence:g}), config.learning_rate ({config.learning_rate:g}) or "
+                f"config.sharing_weight ({config.sharing_weight:g})."
+            )
 
         held_nll: float | None = None
         if len(problem.held):

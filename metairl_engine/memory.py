@@ -204,7 +204,7 @@ def fit_memory(
     rows = (step_rows + share_rows) * (a * entry + 6 * INDEX)
 
     first = 0 if tabular else width  # a features input is broadcast to every network
-    layers = [first, *config.hidden]
+    layers = [first, *config.hidden, 1]  # through the output layer (with no hidden layer, that one alone)
 
     def activations(members: int, n_inputs: int) -> int:
         """Saved activations and their gradients of ``members`` networks on one chunk of states."""

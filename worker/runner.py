@@ -17,7 +17,7 @@ from billiard.exceptions import SoftTimeLimitExceeded
 from sqlalchemy.orm import Session, sessionmaker
 
 from metairl_engine.config import FitConfig
-from metairl_engine.errors import Cancelled, InvalidInput
+from metairl_engine.errors import Cancelled, Diverged, InvalidInput
 from metairl_engine.evidence import tasks_evidence
 from metairl_engine.fit import FitResult, TaskData, fit
 from service.jobs.transitions import owned_by, transition
@@ -152,7 +152,7 @@ def explain_failure(exc: BaseException, *, task_ids: Sequence[str], settings: Se
             f"The job ran longer than the limit of {settings.job_time_limit_s} s; lower config.max_steps, "
             "fit fewer or smaller tasks, or ask the operator to raise METAIRL_JOB_TIME_LIMIT_S."
         )
-    if isinstance(exc, OverBudget | NoCuda):
+    if isinstance(exc, OverBudget | NoCuda | Diverged):
         return str(exc)
     if isinstance(exc, MemoryError):
         return (

@@ -71,9 +71,11 @@ class JobProgress(BaseModel):
 
     step: int
     max_steps: int
-    loss: float
-    irl_loss: float
-    sharing_loss: float
+    loss: float | None = Field(
+        description="The step's loss; null if it was not a finite number (a fit that diverged)."
+    )
+    irl_loss: float | None
+    sharing_loss: float | None
     heldout_nll: float | None = Field(
         description="Held-out negative log-likelihood, when a hold-out is used."
     )
@@ -198,9 +200,9 @@ class HistoryPoint(BaseModel):
     model_config = ConfigDict(from_attributes=True)
 
     step: int
-    loss: float
-    irl_loss: float
-    sharing_loss: float
+    loss: float | None = Field(description="Null where the loss was not a finite number.")
+    irl_loss: float | None
+    sharing_loss: float | None
     heldout_nll: float | None = None
     elapsed_s: float
 

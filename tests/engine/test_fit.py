@@ -8,7 +8,7 @@ import torch
 
 from metairl_engine import MDP, FitConfig, InvalidInput, Trajectory
 from metairl_engine.backups import QRows, successors
-from metairl_engine.errors import Cancelled
+from metairl_engine.errors import Cancelled, Diverged
 from metairl_engine.evidence import NEXT_TO_VISITED, VISITED, evidence
 from metairl_engine.fit import CONVERGED_STEPS, HeldOutStopper, _Problem, fit, gradient_step, objective
 from metairl_engine.grids import grid_mdp
@@ -417,3 +417,9 @@ def test_no_hidden_layer_gives_a_baseline_affine_in_the_features() -> None:
     coef = np.linalg.lstsq(design, result.baseline, rcond=None)[0]
     assert result.baseline.std() > 0.01
     assert np.abs(design @ coef - result.baseline).max() < 1e-5
+
+
+def test_a_fit_whose_loss_stops_being_finite_stops_saying_which_settings_to_lower() -> None:
+    features = np.random.default_rng(0).normal(size=(25, 3)).astype(np.float32)
+    with pytest.raises(Diverged, match=r"diverged at step 1: its loss became nan\. Lower config\.confidence"):
+        fit(goal_tasks_with_features(features), FitConfig(confidence=1e300, hidden=(8,), max_steps=20))

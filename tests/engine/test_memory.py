@@ -42,6 +42,7 @@ def test_estimate_grows_with_hidden_units_states_tasks_and_members() -> None:
     assert estimate(FitConfig(hidden=(32,)), n_states=40_000) > small
     assert estimate(FitConfig(hidden=(32,)), n_tasks=8) > small
     assert estimate(FitConfig(hidden=(32,), ensemble=8)) > estimate(FitConfig(hidden=(32,), ensemble=1))
+    assert 0 < estimate(FitConfig(hidden=())) < small  # no hidden layer: the networks are affine
 
 
 def test_sharing_on_all_states_holds_rows_per_network_and_state() -> None:

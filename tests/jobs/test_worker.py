@@ -285,6 +285,20 @@ def test_job_on_a_worker_set_to_cuda_without_a_gpu_fails_at_once_saying_why(
     assert "(METAIRL_WORKER_DEVICE=cuda) but torch sees no CUDA GPU" in error
 
 
+def test_a_fit_that_diverges_fails_at_once_saying_which_settings_to_lower(
+    stack: Stack, worker: subprocess.Popen[bytes]
+) -> None:
+    """A confidence the config accepts but whose b·Q overflows: the job fails on its first attempt, readable."""
+    demonstrator_id, _ = demonstrated_tasks(stack.client, stack.auth)
+    job_id = submit(stack.client, stack.auth, demonstrator_id, QUICK | {"confidence": 1e300})["id"]
+    failed = wait_for(stack.client, stack.auth, job_id)
+    assert (failed["status"], failed["attempts"]) == ("failed", 1), failed
+    assert (
+        failed["error"].startswith("The fit diverged at step 1")
+        and "config.confidence (1e+300)" in failed["error"]
+    )
+
+
 def test_queued_job_whose_message_was_lost_is_sent_again_and_succeeds(
     stack: Stack, worker: subprocess.Popen[bytes]
 ) -> None:

@@ -182,3 +182,26 @@ def test_the_longest_history_is_served_whole(app: FastAPI, client: TestClient, a
     keep_steps(app, job_id, steps)
     points = client.get(f"/v1/jobs/{job_id}/history", headers=auth).json()["points"]
     assert len(points) == 100_000 and points[-1]["loss"] == steps[-1].loss
+
+
+def test_a_job_whose_losses_were_not_finite_reads_lists_and_cancels_with_null_losses(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    """A NaN loss is stored as null (the worker's JSON has no NaN): every read of the job still answers."""
+    job_id = queued_job(client, auth)
+    with app.state.sessionmaker() as session:
+        claim(session, job_id)
+        job = session.get_one(Job, job_id)
+        job.step, job.max_steps, job.elapsed_s = 3, 20, 0.3
+        job.loss = job.irl_loss = job.sharing_loss = None
+        event = sample(job_id, 1, 3)
+        event.loss = event.irl_loss = event.sharing_loss = None
+        session.add(event)
+        session.commit()
+    read = client.get(f"/v1/jobs/{job_id}", headers=auth)
+    assert read.status_code == 200, read.text
+    assert read.json()["progress"]["loss"] is None and read.json()["progress"]["step"] == 3
+    assert client.get("/v1/jobs", headers=auth).status_code == 200
+    history = client.get(f"/v1/jobs/{job_id}/history", headers=auth)
+    assert history.status_code == 200 and history.json()["points"][0]["loss"] is None
+    assert client.post(f"/v1/jobs/{job_id}/cancel", headers=auth).status_code == 202
