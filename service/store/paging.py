@@ -46,18 +46,31 @@ def encode_cursor(values: Sequence[Any]) -> str:
     return base64.urlsafe_b64encode(raw).decode().rstrip("=")
 
 
-def decode_cursor(cursor: str, n_keys: int) -> list[Any]:
-    """The key values inside a cursor; 422 if it was not made by `encode_cursor` for this list."""
+def decode_cursor(cursor: str, key: Sequence[InstrumentedAttribute[Any]]) -> list[Any]:
+    """The key values inside a cursor, each of its column's type; 422 if it was not made by `encode_cursor`
+    for this list (a cursor is opaque, but a client can still send any base64 JSON)."""
     try:
         raw = json.loads(base64.urlsafe_b64decode(cursor + "=" * (-len(cursor) % 4)))
-        if not isinstance(raw, list) or len(raw) != n_keys:
+        if not isinstance(raw, list) or len(raw) != len(key):
             raise ValueError("wrong number of keys")
-        return [datetime.fromisoformat(v["at"]) if isinstance(v, dict) else v for v in raw]
+        return [_key_value(v, column.type.python_type) for v, column in zip(raw, key, strict=True)]
     except (ValueError, TypeError, KeyError) as exc:
         raise Unprocessable(
             "The cursor is not valid; pass next_cursor from a previous page unchanged.",
             errors=[{"pointer": "", "parameter": "cursor", "message": "is not a cursor of this list"}],
         ) from exc
+
+
+def _key_value(value: Any, kind: type) -> Any:
+    """A cursor's value for a key column of Python type `kind`: a timestamp as ``{"at": iso}``, an integer
+    within 64 bits, a string; TypeError or ValueError for anything else."""
+    if kind is datetime:
+        return datetime.fromisoformat(value["at"])  # TypeError unless a {"at": str}
+    if kind is int and (type(value) is not int or not -(2**63) <= value < 2**63):
+        raise ValueError("not a 64-bit integer")
+    if not isinstance(value, kind):
+        raise TypeError(f"not a {kind.__name__}")
+    return value
 
 
 def paginate(
@@ -71,7 +84,7 @@ def paginate(
     """Run `query` (already filtered to the lab) one page at a time, ordered by the unique `key` columns:
     descending when `newest_first`, else ascending."""
     if params.cursor is not None:
-        query = query.where(_after(key, decode_cursor(params.cursor, len(key)), newest_first))
+        query = query.where(_after(key, decode_cursor(params.cursor, key), newest_first))
     order = [c.desc() if newest_first else c.asc() for c in key]
     rows: Sequence[Any] = session.execute(query.order_by(*order).limit(params.limit + 1)).scalars().all()
     has_more = len(rows) > params.limit
