@@ -54,6 +54,15 @@ class MetairlError(Exception):
         return "\n".join(lines)
 
 
+class InvalidRequestError(MetairlError):
+    """A request the client could not build from its arguments (a NaN in a JSON body): nothing was sent."""
+
+    TITLE = "The request cannot be sent"
+
+    def __init__(self, error: Exception, *, request: str = ""):
+        super().__init__(title=self.TITLE, detail=f"{error}; nothing was sent", request=request)
+
+
 class APIConnectionError(MetairlError):
     """No answer: the service could not be reached, or the connection broke (after the retries)."""
 

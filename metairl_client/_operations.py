@@ -313,7 +313,7 @@ def submit_job(
     """`POST /v1/jobs`."""
     body: dict[str, Any] = {"demonstrator_id": demonstrator_id, "config": dict(config) if config else None}
     if task_ids is not None:
-        body["task_ids"] = list(task_ids)
+        body["task_ids"] = [task_ids] if isinstance(task_ids, str) else list(task_ids)  # one id, or several
     return Call("POST", "/v1/jobs", _job, json=body)
 
 

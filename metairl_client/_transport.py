@@ -15,7 +15,13 @@ from typing import Any, Generic, TypeVar
 import httpx
 from httpx._client import UseClientDefault  # the type of httpx.USE_CLIENT_DEFAULT
 
-from metairl_client._errors import APIConnectionError, APITimeoutError, error_from_response, retry_after_s
+from metairl_client._errors import (
+    APIConnectionError,
+    APITimeoutError,
+    InvalidRequestError,
+    error_from_response,
+    retry_after_s,
+)
 
 T = TypeVar("T")
 
@@ -75,17 +81,21 @@ class Call(Generic[T]):
         return replace(self, headers={**self.headers, IDEMPOTENCY_HEADER: uuid.uuid4().hex})
 
     def build(self, http: httpx.Client | httpx.AsyncClient, timeout: Timeout) -> httpx.Request:
-        """The request, built anew for each try (a multipart body cannot always be sent twice)."""
-        return http.build_request(
-            self.method,
-            self.path,
-            params=self.params,
-            json=self.json,
-            files=self.files,
-            data=self.data,
-            headers=self.headers,
-            timeout=timeout,
-        )
+        """The request, built anew for each try (a multipart body cannot always be sent twice);
+        `InvalidRequestError` for arguments JSON cannot carry (NaN, infinity, objects)."""
+        try:
+            return http.build_request(
+                self.method,
+                self.path,
+                params=self.params,
+                json=self.json,
+                files=self.files,
+                data=self.data,
+                headers=self.headers,
+                timeout=timeout,
+            )
+        except (TypeError, ValueError) as exc:
+            raise InvalidRequestError(exc, request=self.name) from exc
 
     @property
     def name(self) -> str:
