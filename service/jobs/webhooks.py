@@ -122,6 +122,8 @@ def _host_and_port(url: str) -> tuple[str, int] | str:
         return f"is not a valid URL ({exc})"
     if parts.scheme not in ("http", "https") or not parts.hostname:
         return "must be an http:// or https:// URL with a host"
+    if parts.username is not None or parts.password is not None:  # it would be stored and listed in clear
+        return "must not carry a user name or password (user:pass@host); verify deliveries by their signature"
     return parts.hostname, port or (443 if parts.scheme == "https" else 80)
 
 

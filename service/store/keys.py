@@ -156,10 +156,13 @@ def list_keys(session: Session, *, lab_name: str | None = None) -> list[KeyInfo]
 
 
 def revoke_key(session: Session, key_id: str) -> ApiKey | None:
-    """Revoke key `key_id` (a full key is accepted too); None if there is no such key. Flushed, not committed;
-    revoking a revoked key keeps its first revocation time."""
+    """Revoke key `key_id` (a full key is accepted too, only with its own secret: a mistyped one names no
+    key); None if there is no such key. Flushed, not committed; revoking a revoked key keeps its first
+    revocation time."""
     parts = split_key(key_id)
     row = session.get(ApiKey, parts[0] if parts else key_id)
+    if row is not None and parts and not hmac.compare_digest(row.secret_sha256, hash_secret(parts[1])):
+        return None
     if row is not None and row.revoked_at is None:
         row.revoked_at = utcnow()
         session.flush()

@@ -15,7 +15,7 @@ from fastapi.testclient import TestClient
 from metairl_cli.keys import create_key
 from metairl_cli.serve import LOCAL_KEY_FILE, local_key
 from service.settings import Settings
-from service.store.keys import list_keys, revoke_key, split_key
+from service.store.keys import add_key, list_keys, revoke_key, split_key
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -97,3 +97,13 @@ def test_serve_keeps_the_local_key_and_mints_a_new_one_only_when_it_is_revoked(
         third = local_key(session, data_dir)
         assert third != first and path.read_text().strip() == third
         assert len(list_keys(session, lab_name="local")) == before + 2
+
+
+def test_a_full_key_with_a_mistyped_secret_revokes_nothing(app: FastAPI) -> None:
+    with app.state.sessionmaker() as session:
+        key = add_key(session, "typo lab")
+        wrong = key[:-4] + ("aaaa" if not key.endswith("aaaa") else "bbbb")
+        assert revoke_key(session, wrong) is None
+        assert [k.revoked_at for k in list_keys(session, lab_name="typo lab")] == [None]
+        row = revoke_key(session, key)
+        assert row is not None and row.revoked_at is not None

@@ -50,6 +50,7 @@ def test_create_list_read_and_delete_a_webhook(client: TestClient, auth: dict[st
         ("http://[::1]/hook", "loopback"),
         ("ftp://93.184.215.14/hook", "http"),
         ("not a url", "http"),
+        ("https://user:pw@93.184.215.14/hook", "password"),
     ],
 )
 def test_private_loopback_and_odd_targets_are_refused(
