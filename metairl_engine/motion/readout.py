@@ -217,8 +217,12 @@ def ranking_test(
     interval = percentile_interval(
         samples, rho_and_values, n_resamples=n_boot, rng=np.random.default_rng(seed), confidence=1 - ALPHA
     )
-    point = np.r_[rho, value]
-    low, high = (point, point) if interval is None else interval  # None: no repetitions to resample
+    if (
+        interval is None
+    ):  # no source has two repetitions: nothing bounds ρ, so no claim can rest on its interval
+        n = len(value)
+        interval = (np.r_[-1.0, np.full(n, -np.inf)], np.r_[1.0, np.full(n, np.inf)])
+    low, high = interval
     return RankingTest(
         rho=rho,
         p_positive=float((null >= rho - 1e-12).mean()),

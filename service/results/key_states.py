@@ -25,7 +25,8 @@ from service.store.models.demonstrators import Demonstration
 
 
 def demonstration_states(session: Session, task_ids: list[str]) -> list[np.ndarray]:
-    """The state indices of every demonstration of the given tasks, one array per demonstration."""
+    """The state indices of the demonstrations of the given tasks, one array per upload batch (its
+    trajectories' states end to end: for occupancy; `load_trajectories` splits them)."""
     blob_ids = session.execute(
         select(Demonstration.states_blob_id).where(Demonstration.task_id.in_(task_ids))
     ).scalars()

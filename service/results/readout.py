@@ -29,8 +29,8 @@ from metairl_engine.motion.readout import (
 from service.domain.motion import UNITS
 from service.problems import Conflict
 from service.results.engine_modules import metrics
-from service.results.key_states import demonstration_states
 from service.store.blobs import get_array
+from service.store.loaders import load_trajectories
 from service.store.models.demonstrators import Demonstrator, Task
 from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, Reward
@@ -150,7 +150,9 @@ def learned_readout(
         return out
     n_states = rows[0].n_states
     baseline = get_array(session, rows[0].reward_blob_id).astype(np.float64)
-    paths = {task.name: demonstration_states(session, [task.id]) for _, task in direction_tasks}
+    paths = {
+        task.name: [t.states for t in load_trajectories(session, task.id)] for _, task in direction_tasks
+    }
     states = {d: np.unique(np.concatenate(p)) if p else np.zeros(0, np.int64) for d, p in paths.items()}
     grid = {"width": layout["width"], "height": layout["height"]}
     learned = direction_readout(baseline, states, **grid)

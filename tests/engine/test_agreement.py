@@ -134,3 +134,11 @@ def test_without_a_bend_for_all_eight_directions_the_verdict_falls_back_to_the_r
         found = agreement(learned, REACH, offsets=offsets)
         assert found == alone and found.verdict == "agrees"
         assert found.bend_spearman is None and found.bend_p_positive is None and found.bend_rho_low is None
+
+
+def test_one_path_per_direction_bounds_nothing_so_the_bend_alone_claims_nothing() -> None:
+    """A perfect ρ from one path per direction: no repetition to resample, so no interval excludes 0."""
+    single = {d: [float(np.mean(o))] for d, o in OFFSETS.items()}
+    found = agreement({d: -v for d, v in BEND.items()}, FLAT, offsets=single)
+    assert found.bend_spearman == -1.0 and found.verdict == "undetermined", found.detail
+    assert (found.bend_rho_low, found.bend_rho_high) == (-1.0, 1.0)

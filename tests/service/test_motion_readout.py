@@ -16,6 +16,7 @@ from fastapi.testclient import TestClient
 from metairl_engine.grids import DIRECTION_NAMES, velocity_coords
 from metairl_engine.motion.recording import Recording
 from metairl_engine.sim.controller_patient import ControllerSettings, simulate_controller_patient
+from service.results import readout
 from tests.service.helpers import (
     PLATE,
     UNIT,
@@ -326,3 +327,20 @@ def test_hand_made_rows_cover_every_direction_once_per_repetition() -> None:
     instructed = [r["instruction"] for r in rows]
     assert instructed.count("forward") == instructed.count("backward right") == 2 * 60
     assert all(PLATE["x_min"] <= r["x"] <= PLATE["x_max"] for r in rows)
+
+
+def test_the_verdict_resamples_each_movement_of_a_recording_not_its_upload_batch(
+    app: FastAPI, client: TestClient, auth: dict[str, str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A recording stores each direction's movements as one batch of trajectories: the bend's interval
+    resamples the movements (3 per direction here), never the one batch."""
+    seen: dict[str, int] = {}
+    real = readout.path_offsets
+
+    def counting(paths: Any, **grid: int) -> dict[str, list[float]]:
+        seen.update({d: len(p) for d, p in paths.items()})
+        return real(paths, **grid)
+
+    monkeypatch.setattr(readout, "path_offsets", counting)
+    learned_with_paths_bent_forward(app, client, auth, "backward")
+    assert seen == dict.fromkeys(DIRECTION_NAMES, 3)
