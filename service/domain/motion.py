@@ -17,7 +17,27 @@ UNITS: dict[str, Any] = {
     "time_to_peak_s": "t units (as uploaded)",
     "mean_speed": "x, y units per t unit",
 }
-"""What each descriptor is measured in: the recordings' own units (the API never rescales them)."""
+"""What each descriptor is measured in where the recordings carry no length unit: their own, as uploaded."""
+
+
+def descriptor_units(unit: str | None) -> dict[str, str]:
+    """Each descriptor's unit for movements whose lengths are in ``unit`` (None: `UNITS`, as uploaded)."""
+    if unit is None:
+        return UNITS
+    return {
+        "peak_reach": unit,
+        "path_length": unit,
+        "deviation": unit,
+        "time_to_peak_s": UNITS["time_to_peak_s"],
+        "mean_speed": f"{unit} per t unit",
+    }
+
+
+UNIT_FIELD = Field(
+    default=None,
+    description="The length unit of every length (m, cm, mm or the recordings' own): recordings in different "
+    "units among m, cm and mm are converted to the one most of them have; null where they carry none.",
+)
 
 
 class Interval(BaseModel):
@@ -139,7 +159,10 @@ class MotionSummaryOut(BaseModel):
     )
 
     demonstrator_id: str
-    units: dict[str, str] = Field(description="Each descriptor's unit: those of the uploaded t, x, y.")
+    units: dict[str, str] = Field(
+        description="Each descriptor's unit: `unit` for lengths, else the uploaded t, x, y's."
+    )
+    unit: str | None = UNIT_FIELD
     n_recordings: int
     directions: list[DirectionSummary] = Field(description="Directions with movements, in canonical order.")
     learned: LearnedReadout | None = Field(
@@ -230,6 +253,7 @@ class MotionComparisonOut(BaseModel):
     a: ComparedSummary
     b: ComparedSummary
     units: dict[str, str]
+    unit: str | None = UNIT_FIELD
     directions: list[DirectionDiff] = Field(description="Directions both sides moved in, canonical order.")
     learned: LearnedSides
     links: dict[str, str] = Field(description="`png`: POST the same body there for the figure (image/png).")

@@ -10,6 +10,7 @@ here writes to the database.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -26,21 +27,27 @@ from metairl_engine.motion.readout import (
     path_bend,
     path_offsets,
 )
-from service.domain.motion import UNITS
+from service.domain.motion import descriptor_units
 from service.problems import Conflict
 from service.results.engine_modules import metrics
+from service.results.units import common_unit
 from service.store.blobs import get_array
 from service.store.loaders import load_trajectories
 from service.store.models.demonstrators import Demonstrator, Task
 from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, Reward
 from service.store.models.mdps import Mdp
+from service.store.models.recordings import Recording as RecordingRow
 from service.store.recordings import demonstrator_recordings, load_recording
 
 
-def demonstrator_movements(session: Session, demonstrator: Demonstrator) -> tuple[list[Movement], int]:
+def demonstrator_movements(
+    session: Session, demonstrator: Demonstrator, *, others: Sequence[RecordingRow] = ()
+) -> tuple[list[Movement], int, str | None]:
     """The out-and-back movements of every `movements` recording of the demonstrator (each cut with the
-    segment settings of its upload), and the number of those recordings; 409 with a reason when it has none."""
+    segment settings of its upload), the number of those recordings, and the length unit the movements are
+    in: one for them and ``others`` (`common_unit`: recordings in m, cm and mm converted, 409 naming those that
+    cannot be); 409 with a reason when it has none."""
     rows = demonstrator_recordings(session, demonstrator)
     if not rows:
         raise Conflict(
@@ -48,20 +55,35 @@ def demonstrator_movements(session: Session, demonstrator: Demonstrator) -> tupl
             f"none), so there is no motion to read out; upload one with POST "
             f"/v1/demonstrators/{demonstrator.id}/recordings."
         )
+    unit, factors = common_unit([*rows, *others])
     moves = []
     for row in rows:
         rec, segment_settings = load_recording(session, row)
-        moves += movements(rec, segment_settings=segment_settings)
-    return moves, len(rows)
+        moves += [in_unit(m, factors[row.id]) for m in movements(rec, segment_settings=segment_settings)]
+    return moves, len(rows), unit
+
+
+def in_unit(move: Movement, factor: float) -> Movement:
+    """A movement's lengths (and speed) times ``factor``: in another length unit; times stay."""
+    if factor == 1.0:
+        return move
+    return replace(
+        move,
+        peak_reach=move.peak_reach * factor,
+        path_length=move.path_length * factor,
+        deviation=move.deviation * factor,
+        mean_speed=move.mean_speed * factor,
+    )
 
 
 def motion_summary(session: Session, demonstrator: Demonstrator) -> dict[str, Any]:
     """The summary: per direction n_segments and each descriptor's mean with a 95 % interval; and the
     learned-reward readout of the demonstrator's latest succeeded job (None where it has none)."""
-    moves, n_recordings = demonstrator_movements(session, demonstrator)
+    moves, n_recordings, unit = demonstrator_movements(session, demonstrator)
     return {
         "demonstrator_id": demonstrator.id,
-        "units": UNITS,
+        "units": descriptor_units(unit),
+        "unit": unit,
         "n_recordings": n_recordings,
         **summarise(moves),
         "learned": learned_readout(session, demonstrator, moves),
@@ -69,15 +91,17 @@ def motion_summary(session: Session, demonstrator: Demonstrator) -> dict[str, An
 
 
 def motion_comparison(session: Session, a: Demonstrator, b: Demonstrator) -> dict[str, Any]:
-    """b minus a per direction and descriptor (with intervals), both sides' summaries, and the learned-reward
-    readout of each side's latest succeeded job (None where it has none)."""
-    moves_a, _ = demonstrator_movements(session, a)
-    moves_b, _ = demonstrator_movements(session, b)
+    """b minus a per direction and descriptor (with intervals), both sides' summaries in one length unit, and
+    the learned-reward readout of each side's latest succeeded job (None where it has none)."""
+    rows_a, rows_b = demonstrator_recordings(session, a), demonstrator_recordings(session, b)
+    moves_a, _, unit = demonstrator_movements(session, a, others=rows_b)
+    moves_b, _, _ = demonstrator_movements(session, b, others=rows_a)
     result = compare(moves_a, moves_b)
     return {
         "a": {"demonstrator_id": a.id, "name": a.name, **result["a"]},
         "b": {"demonstrator_id": b.id, "name": b.name, **result["b"]},
-        "units": UNITS,
+        "units": descriptor_units(unit),
+        "unit": unit,
         "directions": result["directions"],
         "learned": {"a": learned_readout(session, a, moves_a), "b": learned_readout(session, b, moves_b)},
         "links": {"png": "/v1/motion-comparisons?format=png"},

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import math
-from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +29,7 @@ from service.domain.sway import Estimate, Spectra, SwayDifference, SwayGroup, Sw
 from service.files.images import sway_png
 from service.problems import Conflict, Unprocessable
 from service.results.downloads import Download
+from service.results.units import common_unit, recording_units
 from service.store.blobs import get_array
 from service.store.models.demonstrators import Demonstrator
 from service.store.models.recordings import Recording as RecordingRow
@@ -39,13 +39,6 @@ SUMMARY_SKIP = ("centre_x", "centre_y")
 """Descriptors left out of group comparisons: where the plate put the feet says nothing about sway."""
 ROMBERG = ("closed", "open")
 """The vision labels whose quotient of means is the Romberg quotient (eyes closed / eyes open)."""
-LENGTH_UNITS = {"mm": 1e-3, "cm": 1e-2, "m": 1.0}
-"""Length units trials in different units are converted between (metres per unit), finest first."""
-
-
-def recording_units(row: RecordingRow) -> str | None:
-    """The length unit of a recording's stored COP: metres for a plate file, else the upload's `units`."""
-    return row.settings.get("units") or ("m" if "plate" in row.settings else None)
 
 
 def recording_sway(session: Session, row: RecordingRow, options: SwayOptions = SwayOptions()) -> SwayMeasures:
@@ -73,45 +66,6 @@ class SwaySummary:
     comparison: GroupComparison
     romberg: dict[str, Interval] | None
     not_estimated: dict[str, dict[str, str]]
-
-
-def common_unit(rows: list[RecordingRow]) -> tuple[str | None, dict[str, float]]:
-    """The one length unit a summary of ``rows`` reports and, per recording, the factor its lengths are
-    multiplied by to be in it: the recordings' own unit when they share one, else (all in m, cm or mm) the unit
-    most of them have, ties to the finer; 409 naming the recordings when their lengths cannot be put in one
-    unit (some without a unit, or one outside m, cm, mm)."""
-    units = {row.id: recording_units(row) for row in rows}
-    if len(set(units.values())) == 1:
-        return next(iter(units.values())), dict.fromkeys(units, 1.0)
-    known = {rid: (u or "").strip().lower() for rid, u in units.items()}
-    if all(u in LENGTH_UNITS for u in known.values()):
-        counts = Counter(known.values())
-        unit = max(LENGTH_UNITS, key=lambda u: (counts[u], -LENGTH_UNITS[u]))
-        return unit, {rid: LENGTH_UNITS[u] / LENGTH_UNITS[unit] for rid, u in known.items()}
-    by_unit: dict[str | None, list[str]] = {}
-    for rid, u in units.items():
-        by_unit.setdefault(u, []).append(rid)
-    listing = "; ".join(
-        f"{'no unit' if u is None else repr(u)}: {', '.join(ids)}"
-        for u, ids in sorted(by_unit.items(), key=str)
-    )
-    raise Conflict(
-        f"The trials' lengths cannot be put in one unit ({listing}): only m, cm and mm convert, and a trial "
-        "without a unit has none to convert from. Upload the trials again with `units` m, cm or mm (a stored "
-        "recording's unit cannot be changed; DELETE /v1/demonstrators/{id} removes a demonstrator with its "
-        "recordings), or compare by a label that only trials in one unit carry.",
-        errors=[
-            {
-                "pointer": "",
-                "recording_id": rid,
-                "message": "has no length unit (`units`)"
-                if u is None
-                else f"is in {u!r}, which does not convert to the others' units",
-            }
-            for rid, u in units.items()
-            if u is None or known[rid] not in LENGTH_UNITS
-        ],
-    )
 
 
 def sway_summary(

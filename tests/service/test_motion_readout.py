@@ -344,3 +344,28 @@ def test_the_verdict_resamples_each_movement_of_a_recording_not_its_upload_batch
     monkeypatch.setattr(readout, "path_offsets", counting)
     learned_with_paths_bent_forward(app, client, auth, "backward")
     assert seen == dict.fromkeys(DIRECTION_NAMES, 3)
+
+
+def test_sessions_in_metres_and_centimetres_compare_in_one_unit_and_an_unknown_unit_is_a_409(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    """The same movements uploaded in m and ×100 in cm: no difference once in one unit; beside a recording
+    with no unit, no unit to convert to."""
+    rows = cop_rows({"forward": 0.12, "left": 0.12})
+    in_cm = [r | {"x": r["x"] * 100, "y": r["y"] * 100} for r in rows]
+    plate_cm = {k: v * 100 for k, v in PLATE.items()}
+    dems = [make_demonstrator(client, auth, name=n)["id"] for n in ("metres", "centimetres", "unknown")]
+    for dem, samples, bounds, units in ((dems[0], rows, PLATE, "m"), (dems[1], in_cm, plate_cm, "cm")):
+        body = {"bounds": bounds, "samples": samples, "units": units, "grid": {"width": 10, "height": 10}}
+        created(client.post(f"/v1/demonstrators/{dem}/recordings", json=body, headers=auth))
+    summary = created(client.get(f"/v1/demonstrators/{dems[1]}/motion-summary", headers=auth), 200)
+    assert summary["unit"] == "cm" and summary["units"]["peak_reach"] == "cm"
+    body = created(
+        client.post("/v1/motion-comparisons", json={"a": dems[0], "b": dems[1]}, headers=auth), 200
+    )
+    assert body["unit"] in ("m", "cm")
+    for row in body["directions"]:
+        assert abs(row["peak_reach_diff"]["mean"]) < 1e-3 * (100 if body["unit"] == "cm" else 1), row
+    make_recording(client, auth, dems[2])  # no units
+    refused = client.post("/v1/motion-comparisons", json={"a": dems[0], "b": dems[2]}, headers=auth)
+    assert refused.status_code == 409 and "cannot be put in one unit" in refused.json()["detail"]
