@@ -360,12 +360,12 @@ def test_sessions_in_metres_and_centimetres_compare_in_one_unit_and_an_unknown_u
         created(client.post(f"/v1/demonstrators/{dem}/recordings", json=body, headers=auth))
     summary = created(client.get(f"/v1/demonstrators/{dems[1]}/motion-summary", headers=auth), 200)
     assert summary["unit"] == "cm" and summary["units"]["peak_reach"] == "cm"
-    body = created(
+    compared = created(
         client.post("/v1/motion-comparisons", json={"a": dems[0], "b": dems[1]}, headers=auth), 200
     )
-    assert body["unit"] in ("m", "cm")
-    for row in body["directions"]:
-        assert abs(row["peak_reach_diff"]["mean"]) < 1e-3 * (100 if body["unit"] == "cm" else 1), row
+    assert compared["unit"] in ("m", "cm")
+    for row in compared["directions"]:
+        assert abs(row["peak_reach_diff"]["mean"]) < 1e-3 * (100 if compared["unit"] == "cm" else 1), row
     make_recording(client, auth, dems[2])  # no units
     refused = client.post("/v1/motion-comparisons", json={"a": dems[0], "b": dems[2]}, headers=auth)
     assert refused.status_code == 409 and "cannot be put in one unit" in refused.json()["detail"]
