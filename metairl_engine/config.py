@@ -6,10 +6,11 @@ loading the engine. Field docstrings are the reference documentation of each set
 
 from __future__ import annotations
 
+import math
 import operator
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field, fields
-from typing import Any, Literal
+from typing import Any, Literal, get_args, get_origin, get_type_hints
 
 from metairl_engine.errors import InvalidInput, Issue, check
 
@@ -37,6 +38,29 @@ def bounds(**limits: float) -> dict[str, float]:
     and published as the setting's range in the API's schema."""
     assert set(limits) <= set(BOUNDS), limits
     return limits
+
+
+def type_problem(value: Any, hint: Any) -> str | None:
+    """Why ``value`` is not of a setting's type ``hint`` (a Literal, bool, int, float, or a tuple of ints,
+    maybe None), or None when it is: a notebook's ``FitConfig(method="MAXENT")`` must not run another method."""
+    options = get_args(hint)
+    if get_origin(hint) is Literal:
+        return None if value in options else "must be one of " + ", ".join(repr(o) for o in options)
+    if type(None) in options:
+        if value is None:
+            return None
+        hint = next(o for o in options if o is not type(None))
+    if hint is bool:
+        return None if isinstance(value, bool) else "must be true or false"
+    if hint is int:
+        return None if type(value) is int else "must be an integer"
+    if hint is float:
+        ok = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+        return None if ok else "must be a finite number"
+    if get_origin(hint) is tuple:
+        ok = isinstance(value, tuple | list) and all(type(v) is int for v in value)
+        return None if ok else "must be a list of integers"
+    return None
 
 
 def out_of_bounds(value: float, limits: Mapping[str, float]) -> str | None:
@@ -219,10 +243,18 @@ class FitConfig:
             if not ok:
                 issues.append(Issue(f"/config/{name}", message))
 
+        hints = get_type_hints(FitConfig)
         for f in fields(self):
-            problem = out_of_bounds(getattr(self, f.name), f.metadata) if f.metadata else None
+            value = getattr(self, f.name)
+            if isinstance(value, list):  # a list where a tuple is meant: the same setting, kept hashable
+                object.__setattr__(self, f.name, value := tuple(value))
+            problem = type_problem(value, hints[f.name])
+            if problem is None and f.metadata:
+                problem = out_of_bounds(value, f.metadata)
             if problem:
                 issues.append(Issue(f"/config/{f.name}", problem))
+        if issues:  # the checks below assume every setting has its type
+            check(issues)
         need(
             self.baseline_features is None
             or (

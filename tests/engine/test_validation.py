@@ -1,6 +1,7 @@
 """Validation of MDPs, demonstrations and configs: every error names where and what."""
 
 import warnings
+from typing import Any
 
 import numpy as np
 import pytest
@@ -111,3 +112,29 @@ def test_config_rejects_bad_values_and_unknown_keys() -> None:
         FitConfig.from_dict({"sharing_wieght": 1.0})
     assert pointers(exc) == ["/config/sharing_wieght"]
     assert FitConfig.from_dict({"hidden": [4, 2]}).hidden == (4, 2)
+
+
+@pytest.mark.parametrize(
+    ("settings", "words"),
+    [
+        ({"method": "MAXENT"}, "must be one of 'meta_irl', 'maxent', 'shared_maxent'"),
+        ({"sharing": "bogus"}, "must be one of"),
+        ({"shrink_deviations": "no"}, "true or false"),
+        ({"max_steps": "100"}, "an integer"),
+        ({"max_steps": 1.5}, "an integer"),
+        ({"max_steps": True}, "an integer"),
+        ({"tolerance": float("inf")}, "finite"),
+        ({"learning_rate": "0.01"}, "finite"),
+        ({"hidden": 100}, "list of integers"),
+    ],
+)
+def test_a_setting_of_the_wrong_type_is_invalid_input_naming_it(settings: dict, words: str) -> None:
+    """A notebook's typo must not run another method, nor reach a comparison that raises TypeError."""
+    with pytest.raises(InvalidInput) as exc:
+        FitConfig(**settings)
+    assert pointers(exc) == [f"/config/{next(iter(settings))}"] and words in str(exc.value)
+
+
+def test_a_list_where_a_tuple_is_meant_is_the_same_setting() -> None:
+    listed: dict[str, Any] = {"hidden": [100, 50, 25]}  # as a notebook writes it
+    assert FitConfig(**listed) == FitConfig() and hash(FitConfig(**listed))
