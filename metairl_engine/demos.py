@@ -26,8 +26,24 @@ class Trajectory:
 
     @classmethod
     def of(cls, states: Sequence[int] | np.ndarray, actions: Sequence[int] | np.ndarray) -> Trajectory:
-        """Build from any integer sequences (no checks: see `validate_trajectories`)."""
-        return cls(np.asarray(states, dtype=np.int64), np.asarray(actions, dtype=np.int64))
+        """Build from integer sequences (whole floats such as 3.0 too); `InvalidInput` naming the first value
+        that is not a whole number, which a cast would truncate to another state. Indices and steps are
+        `validate_trajectories`'s to check."""
+        return cls(_indices(states, "/states"), _indices(actions, "/actions"))
+
+
+def _indices(values: Sequence[int] | np.ndarray, pointer: str) -> np.ndarray:
+    """``values`` as int64; `InvalidInput` at ``pointer/k`` for the first that is not a whole number."""
+    array = np.asarray(values)
+    if array.dtype.kind in "iub":
+        return array.astype(np.int64)
+    if array.dtype.kind != "f":
+        check([Issue(pointer, f"must be a list of integers, not {array.dtype} values")])
+    whole = np.isfinite(array) & (np.floor(array) == array)
+    if not whole.all():
+        k = int(np.flatnonzero(~whole)[0])
+        check([Issue(f"{pointer}/{k}", f"{array.flat[k]} is not a whole number (an index)")])
+    return array.astype(np.int64)
 
 
 def validate_trajectories(
@@ -46,7 +62,13 @@ def validate_trajectories(
         at = f"{pointer}/{j}"
         if tr.states.ndim != 1 or tr.actions.ndim != 1:
             issues.append(Issue(at, "states and actions must be flat lists of integers"))
-        elif len(tr.actions) == 0:
+            continue
+        if tr.states.dtype.kind not in "iu" or tr.actions.dtype.kind not in "iu":
+            issues.append(
+                Issue(at, "states and actions must be integer arrays (build them with Trajectory.of)")
+            )
+            continue
+        if len(tr.actions) == 0:
             issues.append(Issue(f"{at}/actions", "needs at least one action"))
         elif len(tr.states) not in (len(tr.actions), len(tr.actions) + 1):
             issues.append(

@@ -138,3 +138,14 @@ def test_a_setting_of_the_wrong_type_is_invalid_input_naming_it(settings: dict, 
 def test_a_list_where_a_tuple_is_meant_is_the_same_setting() -> None:
     listed: dict[str, Any] = {"hidden": [100, 50, 25]}  # as a notebook writes it
     assert FitConfig(**listed) == FitConfig() and hash(FitConfig(**listed))
+
+
+def test_a_trajectory_of_fractional_states_is_refused_rather_than_truncated_to_other_states() -> None:
+    with pytest.raises(InvalidInput) as exc:
+        Trajectory.of(np.array([0.0, 0.5, 1.7]), [0, 1])  # a notebook's floats
+    assert pointers(exc) == ["/states/1"] and "0.5 is not a whole number" in str(exc.value)
+    whole = Trajectory.of(np.array([0.0, 1.0]), np.array([1.0]))  # whole floats are the indices they name
+    assert whole.states.tolist() == [0, 1]
+    with pytest.raises(InvalidInput) as exc:
+        validate_trajectories(chain(), [Trajectory(np.array([0.0, 1.0]), np.array([1.0]))])
+    assert pointers(exc) == ["/trajectories/0"] and "integer arrays" in str(exc.value)
