@@ -6,6 +6,8 @@ Plain dataclasses over numpy arrays (no torch), importable from `metairl_engine.
 from __future__ import annotations
 
 import json
+import zipfile
+import zlib
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -14,6 +16,7 @@ import numpy as np
 
 from metairl_engine.config import FitConfig
 from metairl_engine.demos import Trajectory
+from metairl_engine.errors import InvalidInput, Issue
 from metairl_engine.mdp import MDP
 
 
@@ -89,20 +92,52 @@ class FitResult:
 
     @classmethod
     def load(cls, path: str | Path) -> FitResult:
-        """A result written by `save` (no pickles are read)."""
-        with np.load(path, allow_pickle=False) as stored:
-            meta = json.loads(str(stored["meta"]))
-            arrays = {name: stored[name] for name in cls.ARRAYS if name in stored}
-        return cls(
-            baseline=arrays["baseline"],
-            rewards=arrays["rewards"],
-            values=arrays["values"],
-            policies=arrays["policies"],
-            baseline_spread=arrays.get("baseline_spread"),
-            reward_spread=arrays.get("reward_spread"),
-            history=[Progress(**p) for p in meta["history"]],
-            best_step=meta["best_step"],
-            shrinkage=meta.get("shrinkage", 1.0),
-            sparsity=meta.get("sparsity", 0.0),
-            config=FitConfig.from_dict(meta["config"]),
-        )
+        """A result written by `save` (no pickles are read); `InvalidInput` at ``/file`` for any other file —
+        truncated, corrupted, not one of ours — or one whose arrays do not fit together."""
+        not_ours = "is not a result written by FitResult.save"
+        if not zipfile.is_zipfile(
+            path
+        ):  # np.load would read it as a pickle and suggest loading that unsafely
+            raise InvalidInput([Issue("/file", f"{not_ours} (not an .npz archive)")])
+        try:
+            with np.load(path, allow_pickle=False) as stored:
+                meta = json.loads(str(stored["meta"]))
+                arrays = {name: stored[name] for name in cls.ARRAYS if name in stored}
+            result = cls(
+                baseline=arrays["baseline"],
+                rewards=arrays["rewards"],
+                values=arrays["values"],
+                policies=arrays["policies"],
+                baseline_spread=arrays.get("baseline_spread"),
+                reward_spread=arrays.get("reward_spread"),
+                history=[Progress(**p) for p in meta["history"]],
+                best_step=meta["best_step"],
+                shrinkage=meta.get("shrinkage", 1.0),
+                sparsity=meta.get("sparsity", 0.0),
+                config=FitConfig.from_dict(meta["config"]),
+            )
+        except InvalidInput:
+            raise
+        except (
+            OSError,
+            EOFError,
+            ValueError,
+            KeyError,
+            TypeError,
+            AttributeError,
+            zipfile.BadZipFile,
+            zlib.error,
+        ) as exc:
+            reason = f"{type(exc).__name__}: {exc}".split("\n")[0][:200]
+            raise InvalidInput([Issue("/file", f"{not_ours} ({reason})")]) from None
+        n_tasks, n_states = result.rewards.shape if result.rewards.ndim == 2 else (0, -1)
+        if (
+            result.baseline.shape != (n_states,)
+            or result.values.shape != (n_tasks, n_states)
+            or (result.policies.ndim != 3 or result.policies.shape[:2] != (n_tasks, n_states))
+        ):
+            shapes = ", ".join(
+                f"{n} {getattr(result, n).shape}" for n in ("baseline", "rewards", "values", "policies")
+            )
+            raise InvalidInput([Issue("/file", f"holds arrays that do not fit together: {shapes}")])
+        return result

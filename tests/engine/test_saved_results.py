@@ -1,0 +1,81 @@
+"""`FitResult.save` / `load`: a saved fit comes back whole, and any other file is `InvalidInput` at ``/file``
+(never numpy's hint to unpickle it, nor a raw zip, zlib or JSON error)."""
+
+from __future__ import annotations
+
+import io
+import json
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from metairl_engine import FitConfig, InvalidInput
+from metairl_engine.fit import fit
+from metairl_engine.results import FitResult
+from tests.engine.helpers import goal_tasks_with_features
+
+
+@pytest.fixture(scope="module")
+def saved(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A small fit's file."""
+    features = np.random.default_rng(0).normal(size=(25, 3)).astype(np.float32)
+    path = tmp_path_factory.mktemp("fit") / "fit.npz"
+    fit(goal_tasks_with_features(features), FitConfig(hidden=(8,), max_steps=5)).save(path)
+    return path
+
+
+def rewritten(saved: Path, tmp_path: Path, change: dict[str, object]) -> Path:
+    """The saved file with some members replaced (a member set to None is left out)."""
+    with np.load(saved) as stored:
+        members = {name: stored[name] for name in stored.files}
+    members |= {k: v for k, v in change.items() if v is not None}
+    members = {k: v for k, v in members.items() if change.get(k, 0) is not None}
+    path = tmp_path / "changed.npz"
+    np.savez(path, **members)
+    return path
+
+
+def test_a_saved_fit_loads_as_it_was(saved: Path) -> None:
+    loaded = FitResult.load(saved)
+    assert loaded.config == FitConfig(hidden=(8,), max_steps=5) and loaded.rewards.shape == (2, 25)
+
+
+@pytest.mark.parametrize(
+    "damage",
+    [
+        lambda data: data[: len(data) // 2],  # truncated
+        lambda data: data[:200] + bytes(b ^ 0xFF for b in data[200:400]) + data[400:],  # bytes flipped
+        lambda data: b"",  # empty
+        lambda data: b"time,x,y\n0,1,2\n",  # a text file
+    ],
+)
+def test_a_damaged_or_foreign_file_is_invalid_input_at_file(
+    saved: Path, tmp_path: Path, damage: object
+) -> None:
+    path = tmp_path / "damaged.npz"
+    path.write_bytes(damage(saved.read_bytes()))  # type: ignore[operator]
+    with pytest.raises(InvalidInput) as exc:
+        FitResult.load(path)
+    assert [i.pointer for i in exc.value.issues] == ["/file"]
+    assert "is not a result written by FitResult.save" in str(exc.value) and "pickle" not in str(exc.value)
+
+
+@pytest.mark.parametrize(
+    ("change", "words"),
+    [
+        ({"meta": None}, "not a result"),
+        ({"rewards": None}, "not a result"),
+        ({"meta": np.array("{not json")}, "not a result"),
+        ({"meta": np.array(json.dumps([1, 2]))}, "not a result"),
+        ({"rewards": np.zeros((7, 3))}, "do not fit together"),
+    ],
+)
+def test_a_file_missing_a_part_or_with_arrays_that_do_not_fit_is_invalid_input(
+    saved: Path, tmp_path: Path, change: dict[str, object], words: str
+) -> None:
+    with pytest.raises(InvalidInput) as exc:
+        FitResult.load(rewritten(saved, tmp_path, change))
+    assert [i.pointer for i in exc.value.issues] == ["/file"] and words in str(exc.value)
+    assert zipfile.is_zipfile(io.BytesIO(saved.read_bytes()))  # the original is untouched
