@@ -90,7 +90,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     worker = command_parser(sub, "worker", "start a Celery worker alone")
     worker.add_argument(
-        "--concurrency", type=int, default=1, help="jobs run at once (each uses all its threads)"
+        "--concurrency",
+        type=int,
+        default=None,
+        help="jobs run at once, each with its share of the cores (default: METAIRL_WORKER_CONCURRENCY, else 1)",
     )
     worker.add_argument("--quiet", action="store_true", help="no Celery start-up banner")
 

@@ -61,6 +61,22 @@ def test_serve_starts_its_worker_without_the_celery_banner(
     assert started[0][:2] == ["--quiet", "worker"] and started[1][0] == "worker"
 
 
+def test_a_worker_without_concurrency_takes_the_setting_from_the_environment(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    monkeypatch.chdir(tmp_path)  # the Celery app makes its broker folders under ./var on import
+    from worker import main as worker_main
+    from worker.celery_app import app
+
+    monkeypatch.setenv("METAIRL_WORKER_CONCURRENCY", "3")
+    started: list[list[str]] = []
+    monkeypatch.setattr(app, "start", lambda argv: started.append(argv))
+    assert build_parser().parse_args(["worker"]).concurrency is None
+    worker_main.run_worker()
+    worker_main.run_worker(concurrency=2)
+    assert "--concurrency=3" in started[0] and "--concurrency=2" in started[1]
+
+
 def test_the_worker_output_is_relayed_and_its_ready_line_noticed(capfd: pytest.CaptureFixture[str]) -> None:
     code = "import time; print('banner', flush=True); time.sleep(0.2); print('[INFO] celery@x ready.', flush=True)"
     child, ready = spawn_relayed([sys.executable, "-c", code], {})

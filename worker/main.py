@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 
 
-def prepare_environment(*, concurrency: int) -> None:
+def prepare_environment(*, concurrency: int | None) -> None:
     """Set what the job processes read from the environment, before anything loads torch.
 
     The concurrency goes to the settings, so torch threads are split by it. OpenMP threads spin only briefly
@@ -15,15 +15,22 @@ def prepare_environment(*, concurrency: int) -> None:
     0.051 s per task-step spinning and 0.027 with the short spin, and 0.011 / 0.012 on quiet cores
     (16 tasks of ``python -m benchmarks.scale``, 12 steps, torch's default 2 threads).
     """
-    os.environ["METAIRL_WORKER_CONCURRENCY"] = str(concurrency)
+    if concurrency is not None:  # else METAIRL_WORKER_CONCURRENCY (default 1) as the environment sets it
+        os.environ["METAIRL_WORKER_CONCURRENCY"] = str(concurrency)
     os.environ.setdefault("GOMP_SPINCOUNT", "3000")
 
 
-def run_worker(*, concurrency: int, quiet: bool = False) -> int:
+def run_worker(*, concurrency: int | None = None, quiet: bool = False) -> int:
     """Run a worker until it is stopped (SIGTERM: finish the running jobs; SIGQUIT: now); the exit code.
-    ``quiet`` leaves out Celery's start-up banner (`metairl serve` prints its own summary)."""
+    ``concurrency`` None: the setting's (``METAIRL_WORKER_CONCURRENCY``). ``quiet`` leaves out Celery's
+    start-up banner (`metairl serve` prints its own summary)."""
     prepare_environment(concurrency=concurrency)
+    from service.settings import Settings
     from worker.celery_app import app
+
+    concurrency = (
+        Settings().worker_concurrency
+    )  # the environment as prepared (the cached settings may predate it)
 
     code = app.start(
         argv=[
