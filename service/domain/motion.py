@@ -133,6 +133,11 @@ class LearnedReadout(BaseModel):
     job_id: str
     baseline_reward_id: str | None
     caveat: str = Field(description="What a baseline learned from out-and-back movements can and cannot say.")
+    recordings_after_job: list[str] = Field(
+        default_factory=list,
+        description="Recordings uploaded after the job was submitted: the paths, reach and verdict here include "
+        "them but the fit never saw them; submit a new job to learn from them.",
+    )
     agreement: Agreement = Field(
         description="Contract: the verdict on the learned readout against the recordings."
     )

@@ -152,6 +152,9 @@ def learned_readout(
         "job_id": job.id,
         "baseline_reward_id": rows[0].id if rows else None,
         "caveat": BASELINE_CAVEAT,
+        "recordings_after_job": [
+            r.id for r in demonstrator_recordings(session, demonstrator) if r.created_at > job.created_at
+        ],
         "directions": [],
     }
     reach: dict[str, list[float]] = {}

@@ -176,6 +176,10 @@ def test_comparison_and_summary_carry_each_sides_latest_learned_readout(
     assert (
         learned["agreement"]["verdict"] == "undetermined" and "at least 4" in learned["agreement"]["detail"]
     )
+    assert learned["recordings_after_job"] == []
+    later = make_recording(client, auth, b["id"], WEAK)  # the fit never saw it: the readout says so
+    again = created(client.get(f"/v1/demonstrators/{b['id']}/motion-summary", headers=auth), 200)
+    assert again["learned"]["recordings_after_job"] == [later["id"]]
 
 
 FAN = {"right": 0.14, "forward right": 0.12, "forward": 0.10, "forward left": 0.08, "left": 0.06}

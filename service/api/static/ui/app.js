@@ -829,6 +829,13 @@ async function renderLearned(learned, current) {
       el("button", { class: "small quiet", "data-action": "results", onclick: () => showResults(learned.job_id, { scroll: true }) }, "Heatmaps"),
     ),
     verdict,
+    learned.recordings_after_job?.length
+      ? el(
+          "p",
+          { class: "caveat", "data-role": "stale" },
+          `${learned.recordings_after_job.length} recording(s) came after this job: the paths and reach here include them, the fit never saw them. Submit a new job to learn from them.`,
+        )
+      : null,
     table,
     el("p", { class: "caveat", "data-role": "caveat" }, learned.caveat),
   );
