@@ -373,3 +373,10 @@ def test_sessions_in_metres_and_centimetres_compare_in_one_unit_and_an_unknown_u
     make_recording(client, auth, dems[2])  # no units
     refused = client.post("/v1/motion-comparisons", json={"a": dems[0], "b": dems[2]}, headers=auth)
     assert refused.status_code == 409 and "cannot be put in one unit" in refused.json()["detail"]
+
+
+def test_a_session_compared_with_itself_is_422_at_b(client: TestClient, auth: dict[str, str]) -> None:
+    dem = make_demonstrator(client, auth)["id"]
+    make_recording(client, auth, dem, WEAK)
+    response = client.post("/v1/motion-comparisons", json={"a": dem, "b": dem}, headers=auth)
+    assert response.status_code == 422 and response.json()["errors"][0]["pointer"] == "/b"

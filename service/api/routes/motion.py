@@ -18,6 +18,7 @@ from service.domain.motion import (
     MotionComparisonOut,
     MotionSummaryOut,
 )
+from service.problems import Unprocessable
 from service.results import readout
 from service.results.downloads import Download
 from service.store.demonstrators import get_demonstrator
@@ -59,6 +60,7 @@ def motion_summary(demonstrator_id: str, session: SessionDep, lab: LabDep) -> Mo
     responses={
         200: {"description": "JSON, or with `?format=png` the figure.", "content": {"image/png": {}}},
         404: {"description": "`a` or `b` is not a demonstrator of your lab (problem+json)."},
+        422: {"description": "`b` is the same demonstrator as `a` (problem+json)."},
         409: {"description": NO_RECORDINGS},
     },
 )
@@ -69,6 +71,11 @@ def motion_comparison(
     format: Annotated[Literal["json", "png"], Query(description="`json` (default) or `png`.")] = "json",
 ) -> MotionComparisonOut | Response:
     """Differences with intervals, summaries and learned readouts; or their figure."""
+    if body.a == body.b:
+        message = "is the same demonstrator as a: every difference would be 0; give another session"
+        raise Unprocessable(
+            f"The comparison is invalid. /b: {message}", errors=[{"pointer": "/b", "message": message}]
+        )
     a = get_demonstrator(session, body.a, lab_id=lab.id)
     b = get_demonstrator(session, body.b, lab_id=lab.id)
     comparison = readout.motion_comparison(session, a, b)
