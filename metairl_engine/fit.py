@@ -37,7 +37,7 @@ from metairl_engine.config import (
     sharing_block_count,
 )
 from metairl_engine.coordinates import COORDINATE_OCTAVES, state_coordinates
-from metairl_engine.demos import validate_trajectories, with_stays_at_ends
+from metairl_engine.demos import Trajectory, validate_trajectories, with_stays_at_ends
 from metairl_engine.errors import Cancelled, Diverged, InvalidInput, Issue, check
 from metairl_engine.evidence import NEXT_TO_VISITED
 from metairl_engine.holdout import (
@@ -85,12 +85,27 @@ def fit(
     ``shared_maxent`` solver instead
     (`FitConfig.tabular_choice`); the result's ``config`` says which ran.
     """
+    if not isinstance(config, FitConfig):
+        check(
+            [
+                Issue(
+                    "/config",
+                    f"must be a FitConfig (FitConfig.from_dict reads a dict), not {type(config).__name__}",
+                )
+            ]
+        )
     validate_tasks(tasks)
     if config.method != "meta_irl":
         from metairl_engine.maxent import fit_maxent
 
         return fit_maxent(tasks, config, progress=progress, should_stop=should_stop)
-    on = torch.device(device or "cpu")
+    try:
+        on = torch.device(device or "cpu")
+        torch.empty(0, device=on)  # a device torch names but this machine lacks fails here, not mid-fit
+    except (RuntimeError, TypeError, AssertionError) as exc:  # torch asserts when built without CUDA
+        check(
+            [Issue("/device", f"{device!r} is not a device torch can use here ({str(exc).splitlines()[0]})")]
+        )
     with retained_heap():
         if tabular_choice_applies(tasks, config):
             return _fit_choosing_method(tasks, config, progress=progress, should_stop=should_stop, device=on)
@@ -222,8 +237,24 @@ def place_wins(with_features: torch.Tensor, place_alone: torch.Tensor) -> bool:
 
 def validate_tasks(tasks: Sequence[TaskData]) -> None:
     """All tasks must share states, actions and features; every task's trajectories must fit its MDP."""
+    if isinstance(tasks, TaskData) or not isinstance(tasks, Sequence):
+        check([Issue("/tasks", f"must be a list of TaskData, not {type(tasks).__name__}")])
     if len(tasks) == 0:
         check([Issue("/tasks", "needs at least one task")])
+    for i, task in enumerate(tasks):
+        if not isinstance(task, TaskData):
+            check([Issue(f"/tasks/{i}", f"must be a TaskData, not {type(task).__name__}")])
+        if isinstance(task.trajectories, Trajectory) or not all(
+            isinstance(t, Trajectory) for t in task.trajectories
+        ):
+            check(
+                [
+                    Issue(
+                        f"/tasks/{i}/trajectories",
+                        "must be a list of Trajectory (Trajectory.of(states, actions))",
+                    )
+                ]
+            )
     issues: list[Issue] = []
     first = tasks[0].mdp
     for i, task in enumerate(tasks):

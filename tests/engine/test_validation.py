@@ -6,7 +6,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from metairl_engine import MDP, FitConfig, InvalidInput, Layout, Trajectory, validate_trajectories
+from metairl_engine import MDP, FitConfig, InvalidInput, Layout, TaskData, Trajectory, validate_trajectories
+from metairl_engine.fit import fit
 
 
 def pointers(exc: pytest.ExceptionInfo[InvalidInput]) -> list[str]:
@@ -149,3 +150,19 @@ def test_a_trajectory_of_fractional_states_is_refused_rather_than_truncated_to_o
     with pytest.raises(InvalidInput) as exc:
         validate_trajectories(chain(), [Trajectory(np.array([0.0, 1.0]), np.array([1.0]))])
     assert pointers(exc) == ["/trajectories/0"] and "integer arrays" in str(exc.value)
+
+
+def test_fit_called_with_the_wrong_kinds_of_argument_says_which() -> None:
+    """A notebook's slips: a dict for the config, one task for a list, a tuple for a task, a device torch
+    does not know: `InvalidInput` naming the argument, not an AttributeError deep in the fit."""
+    task = TaskData(mdp=chain(), trajectories=[Trajectory.of([0, 1], [1])], name="t")
+    for args, kwargs, pointer in (
+        (([task], {"max_steps": 3}), {}, "/config"),
+        ((task,), {}, "/tasks"),
+        (([(task.mdp, task.trajectories)],), {}, "/tasks/0"),
+        (([TaskData(mdp=chain(), trajectories=[([0, 1], [1])], name="t")],), {}, "/tasks/0/trajectories"),  # type: ignore[list-item]
+        (([task],), {"device": "tpu"}, "/device"),
+    ):
+        with pytest.raises(InvalidInput) as exc:
+            fit(*args, **kwargs)  # type: ignore[arg-type]
+        assert pointers(exc) == [pointer]
