@@ -345,7 +345,8 @@ class SegmentSettings:
                 out.append(Issue(f"{pointer}/{name}", f"must be ≥ 0, got {getattr(self, name)!r}"))
         unknown = [d for d in self.directions if d not in DIRECTION_NAMES]
         if unknown or not self.directions:
-            out.append(Issue(f"{pointer}/directions", f"must be some of {', '.join(DIRECTION_NAMES)}"))
+            found = f" ({', '.join(map(repr, unknown))} is not one)" if unknown else ""
+            out.append(Issue(f"{pointer}/directions", f"must be some of {', '.join(DIRECTION_NAMES)}{found}"))
         return out
 
 

@@ -263,6 +263,7 @@ def test_bad_segment_settings_are_named() -> None:
     with pytest.raises(InvalidInput) as exc:
         segment(rec, SegmentSettings(min_prominence=1.5, directions=("up",)))
     assert pointers(exc) == ["/segment/min_prominence", "/segment/directions"]
+    assert "('up' is not one)" in str(exc.value)
 
 
 def test_demonstrations_group_valid_trajectories_by_label() -> None:
