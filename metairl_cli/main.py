@@ -31,7 +31,7 @@ The local lab's key is kept in METAIRL_DATA_DIR/local-api-key and printed again 
   metairl keys list --lab motion-lab     # id, lab, created, last used, revoked
   metairl keys revoke 85039365110284c6   # by the id `keys list` shows: the next request gets 401""",
     "demo": """examples:
-  metairl demo --quick                   # about a minute, with the key `metairl serve` keeps
+  metairl demo --quick                   # under a minute, with the key `metairl serve` keeps
   metairl demo --out results             # the full experiment; figure, heatmaps and tables in results/
   METAIRL_API_KEY=mirl_… metairl demo --url http://lab-server:8000
 
@@ -114,7 +114,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--api-key", default=None, help="default: $METAIRL_API_KEY, else the key `metairl serve` keeps"
     )
     demo.add_argument("--out", default="demo-out", help="folder for the results (default: %(default)s)")
-    demo.add_argument("--quick", action="store_true", help="a one-minute version")
+    demo.add_argument("--quick", action="store_true", help="18 small jobs, under a minute")
     return parser
 
 
