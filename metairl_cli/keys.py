@@ -72,9 +72,12 @@ def key_line(info: KeyInfo) -> str:
 
 
 def list_keys_command(*, lab: str | None) -> int:
-    """Print every key (of `lab` if given), one per line, oldest first; exit code."""
+    """Print every key (of `lab` if given), one per line, oldest first; exit code 1 for a lab without keys."""
     with migrated_session() as session:
         keys = list_keys(session, lab_name=None if lab is None else lab.strip())
+    if not keys and lab is not None:  # say so, rather than print nothing for a misspelt lab
+        print(f"error: lab {lab.strip()!r} has no API keys (see 'metairl keys list' for every lab's)")
+        return 1
     for info in keys:
         print(key_line(info))
     return 0

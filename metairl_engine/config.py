@@ -208,7 +208,9 @@ class FitConfig:
     """Adam's learning rate (paper: 0.01)."""
 
     max_steps: int = field(default=1000, metadata=bounds(ge=1, le=100_000))
-    """Upper bound on optimisation steps (the held-out rule usually stops earlier without sharing)."""
+    """Upper bound on optimisation steps (the held-out rule usually stops earlier without sharing). ``maxent``
+    solves each task alone, up to this many L-BFGS iterations per task: its progress counts every task's, out
+    of ``max_steps`` × tasks."""
 
     tolerance: float = field(default=1e-6, metadata=bounds(ge=0))
     """Stop when the relative change of the training loss per step stays below this for 10 steps in a row."""

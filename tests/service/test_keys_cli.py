@@ -76,6 +76,8 @@ def test_list_shows_each_key_of_a_lab_and_revoke_makes_the_next_request_401(
 
     unknown = metairl(settings, "keys", "revoke", "0123456789abcdef")
     assert unknown.returncode == 1 and "no API key" in unknown.stdout
+    nobody = metairl(settings, "keys", "list", "--lab", "no such lab")
+    assert nobody.returncode == 1 and "has no API keys" in nobody.stdout
 
 
 def test_serve_keeps_the_local_key_and_mints_a_new_one_only_when_it_is_revoked(
