@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import difflib
+import logging
+import os
+from collections.abc import Mapping
 from functools import lru_cache
 from pathlib import Path
 from typing import Literal
@@ -184,7 +188,27 @@ class Settings(BaseSettings):
         return f"sqlite:///{(self.data_dir / 'metairl.db').resolve()}"
 
 
+LAB_TOOL_VARIABLES = frozenset({"METAIRL_API_KEY", "METAIRL_URL"})
+"""``METAIRL_`` variables the lab tools read (the client, ``metairl demo``), not settings of the service."""
+
+
+def unknown_variables(environ: Mapping[str, str]) -> list[str]:
+    """One line per ``METAIRL_`` variable of ``environ`` that names no setting (a misspelt one is otherwise
+    ignored, and its setting keeps its default), with the closest setting's name when there is one."""
+    known = {f"METAIRL_{name.upper()}" for name in Settings.model_fields}
+    lines = []
+    for name in sorted(environ):
+        if name.startswith("METAIRL_") and name not in known | LAB_TOOL_VARIABLES:
+            close = difflib.get_close_matches(name, sorted(known), n=1)
+            hint = f"; did you mean {close[0]}?" if close else ""
+            lines.append(f"{name} is not a metairl setting and is ignored{hint}")
+    return lines
+
+
 @lru_cache(maxsize=1)
 def get_settings() -> Settings:
-    """The settings of this process, read from the environment once."""
+    """The settings of this process, read from the environment once; each variable that names no setting
+    is logged as a warning."""
+    for line in unknown_variables(os.environ):
+        logging.getLogger("metairl.settings").warning(line)
     return Settings()
