@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from sqlalchemy import and_, bindparam, select
 from sqlalchemy.orm import Session
 
@@ -31,13 +33,14 @@ def list_jobs(
     *,
     lab_id: str,
     page: PageParams,
-    status: JobStatus | None = None,
+    status: Sequence[JobStatus] | None = None,
     demonstrator_id: str | None = None,
 ) -> RowPage[Job]:
-    """One page of the lab's jobs, newest first, optionally only those in `status` or of one demonstrator."""
+    """One page of the lab's jobs, newest first, optionally only those in one of `status` or of one
+    demonstrator."""
     query = select(Job).where(Job.lab_id == lab_id)
-    if status is not None:
-        query = query.where(Job.status == status.value)
+    if status:
+        query = query.where(Job.status.in_([s.value for s in status]))
     if demonstrator_id is not None:
         query = query.where(Job.demonstrator_id == demonstrator_id)
     return paginate(session, query, page, key=(Job.created_at, Job.id))

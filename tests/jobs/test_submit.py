@@ -161,6 +161,7 @@ def test_list_filters_by_status_and_demonstrator_with_cursor_pages(
     assert listed(demonstrator_id=first) == ids[1::-1]
     assert listed(status="cancelled") == [ids[0]]
     assert listed(status="queued", demonstrator_id=first) == [ids[1]]
+    assert listed(status=["cancelled", "queued"]) == ids[::-1]  # several statuses: any of them
     assert client.get("/v1/jobs", params={"status": "done"}, headers=auth).status_code == 422
 
 

@@ -68,7 +68,11 @@ def list_jobs(
     lab: LabDep,
     page: PageDep,
     status_: Annotated[
-        JobStatus | None, Query(alias="status", description="Only jobs in this status.")
+        list[JobStatus] | None,
+        Query(
+            alias="status",
+            description="Only jobs in this status; repeat it for several (`?status=queued&status=running`).",
+        ),
     ] = None,
     demonstrator_id: Annotated[str | None, Query(description="Only jobs of this demonstrator.")] = None,
 ) -> Page[JobOut]:
