@@ -81,3 +81,25 @@ JobConfig = config_model()
 def fit_config(config: BaseModel | None) -> FitConfig:
     """The engine's `FitConfig` of a validated `JobConfig` (None: every default)."""
     return FitConfig() if config is None else FitConfig.from_dict(config.model_dump())
+
+
+SETTINGS_ONLY_WITH: tuple[tuple[str, str, Any, str], ...] = (
+    ("bgi_k", "backup", "bgi", 'backup "bgi"'),
+    ("sharing_weight", "sharing", None, "sharing"),
+    ("sharing_states", "sharing", None, "sharing"),
+)
+"""(setting, the setting it depends on, the value that uses it — None: any but "none" — and how to say so):
+a setting the fit reads only under another's value."""
+
+
+def ignored_settings(config: dict[str, Any]) -> list[str]:
+    """One line per setting of a job's ``config`` changed from its default where another setting makes the fit
+    ignore it (`SETTINGS_ONLY_WITH`): accepted, as any valid config is, but said, so a lab does not read a
+    result as shaped by it."""
+    defaults = {f.name: f.default for f in fields(FitConfig)}
+    lines = []
+    for name, other, used_with, what in SETTINGS_ONLY_WITH:
+        used = config.get(other) == used_with if used_with is not None else config.get(other) != "none"
+        if name in config and config[name] != defaults[name] and not used:
+            lines.append(f"{name} is used only with {what}; this job has {other} {config.get(other)!r}")
+    return lines

@@ -7,12 +7,12 @@ from datetime import datetime
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, computed_field
 from pydantic_core import to_json
 from sqlalchemy import Row
 
 from service.domain.common import Body, Resource
-from service.domain.job_config import JobConfig
+from service.domain.job_config import JobConfig, ignored_settings
 from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, JobEvent
 
@@ -142,6 +142,15 @@ class JobOut(Resource):
     updated_at: datetime
     started_at: datetime | None
     finished_at: datetime | None
+
+    @computed_field(  # type: ignore[prop-decorator]
+        description="Settings changed from their default that another setting makes the fit ignore (`bgi_k` "
+        "without backup bgi, the sharing settings without sharing), one sentence each; empty when none."
+    )
+    @property
+    def ignored_settings(self) -> list[str]:
+        """`job_config.ignored_settings` of this job's config."""
+        return ignored_settings(self.config)
 
     @classmethod
     def of(cls, job: Job | Row[Any]) -> JobOut:

@@ -238,3 +238,20 @@ def test_baseline_features_are_checked_against_the_mdp_at_submission(
         assert response.status_code == 202, response.text
     else:
         assert pointers(response) == ["/config/baseline_features"]
+
+
+def test_a_job_says_which_of_its_settings_another_setting_makes_the_fit_ignore(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    demonstrator_id, _ = demonstrated_tasks(client, auth, 1)
+    plain = submit(client, auth, demonstrator_id, QUICK)
+    assert plain["ignored_settings"] == []
+    odd = submit(client, auth, demonstrator_id, QUICK | {"bgi_k": 3, "sharing": "none", "sharing_weight": 9})
+    assert odd["ignored_settings"] == [
+        "bgi_k is used only with backup \"bgi\"; this job has backup 'max'",
+        "sharing_weight is used only with sharing; this job has sharing 'none'",
+    ]
+    assert (
+        client.get(f"/v1/jobs/{odd['id']}", headers=auth).json()["ignored_settings"]
+        == odd["ignored_settings"]
+    )
