@@ -42,6 +42,11 @@ class Progress:
     elapsed_s: float
 
 
+SAVE_FORMAT = 1
+"""Version of the file `FitResult.save` writes (in its meta): a file of another version is refused, not misread;
+one without a version is read as this one."""
+
+
 @dataclass(frozen=True)
 class FitResult:
     """Learned rewards of T tasks on S states with A actions, all float32.
@@ -81,6 +86,7 @@ class FitResult:
         """Write this result to one ``.npz`` file (arrays as they are; config, history and best step as JSON)."""
         arrays = {name: getattr(self, name) for name in self.ARRAYS if getattr(self, name) is not None}
         meta = {
+            "format": SAVE_FORMAT,
             "config": self.config.to_dict(),
             "best_step": self.best_step,
             "shrinkage": self.shrinkage,
@@ -103,6 +109,15 @@ class FitResult:
             with np.load(path, allow_pickle=False) as stored:
                 meta = json.loads(str(stored["meta"]))
                 arrays = {name: stored[name] for name in cls.ARRAYS if name in stored}
+            if isinstance(meta, dict) and meta.get("format", SAVE_FORMAT) != SAVE_FORMAT:
+                raise InvalidInput(
+                    [
+                        Issue(
+                            "/file",
+                            f"was saved in format {meta['format']!r}; this metairl reads {SAVE_FORMAT}",
+                        )
+                    ]
+                )
             result = cls(
                 baseline=arrays["baseline"],
                 rewards=arrays["rewards"],

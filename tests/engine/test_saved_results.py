@@ -70,6 +70,7 @@ def test_a_damaged_or_foreign_file_is_invalid_input_at_file(
         ({"meta": np.array("{not json")}, "not a result"),
         ({"meta": np.array(json.dumps([1, 2]))}, "not a result"),
         ({"rewards": np.zeros((7, 3))}, "do not fit together"),
+        ({"meta": np.array(json.dumps({"format": 2}))}, "saved in format 2; this metairl reads 1"),
     ],
 )
 def test_a_file_missing_a_part_or_with_arrays_that_do_not_fit_is_invalid_input(
