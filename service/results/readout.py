@@ -41,13 +41,8 @@ from service.store.models.recordings import Recording as RecordingRow
 from service.store.recordings import demonstrator_recordings, load_recording
 
 
-def demonstrator_movements(
-    session: Session, demonstrator: Demonstrator, *, others: Sequence[RecordingRow] = ()
-) -> tuple[list[Movement], int, str | None]:
-    """The out-and-back movements of every `movements` recording of the demonstrator (each cut with the
-    segment settings of its upload), the number of those recordings, and the length unit the movements are
-    in: one for them and ``others`` (`common_unit`: recordings in m, cm and mm converted, 409 naming those that
-    cannot be); 409 with a reason when it has none."""
+def movement_recordings(session: Session, demonstrator: Demonstrator) -> list[RecordingRow]:
+    """The demonstrator's `movements` recordings; 409 with a reason when it has none."""
     rows = demonstrator_recordings(session, demonstrator)
     if not rows:
         raise Conflict(
@@ -55,12 +50,19 @@ def demonstrator_movements(
             f"none), so there is no motion to read out; upload one with POST "
             f"/v1/demonstrators/{demonstrator.id}/recordings."
         )
-    unit, factors = common_unit([*rows, *others])
+    return rows
+
+
+def recorded_movements(
+    session: Session, rows: Sequence[RecordingRow], factors: dict[str, float]
+) -> list[Movement]:
+    """The out-and-back movements of the recordings ``rows`` (each cut with the segment settings of its
+    upload), lengths times each recording's factor to one unit (`common_unit`)."""
     moves = []
     for row in rows:
         rec, segment_settings = load_recording(session, row)
         moves += [in_unit(m, factors[row.id]) for m in movements(rec, segment_settings=segment_settings)]
-    return moves, len(rows), unit
+    return moves
 
 
 def in_unit(move: Movement, factor: float) -> Movement:
@@ -77,25 +79,30 @@ def in_unit(move: Movement, factor: float) -> Movement:
 
 
 def motion_summary(session: Session, demonstrator: Demonstrator) -> dict[str, Any]:
-    """The summary: per direction n_segments and each descriptor's mean with a 95 % interval; and the
-    learned-reward readout of the demonstrator's latest succeeded job (None where it has none)."""
-    moves, n_recordings, unit = demonstrator_movements(session, demonstrator)
+    """The summary: per direction n_segments and each descriptor's mean with a 95 % interval, lengths in one
+    unit; and the learned-reward readout of the demonstrator's latest succeeded job (None where it has none)."""
+    rows = movement_recordings(session, demonstrator)
+    unit, factors = common_unit(rows)
+    moves = recorded_movements(session, rows, factors)
     return {
         "demonstrator_id": demonstrator.id,
         "units": descriptor_units(unit),
         "unit": unit,
-        "n_recordings": n_recordings,
+        "n_recordings": len(rows),
         **summarise(moves),
-        "learned": learned_readout(session, demonstrator, moves),
+        "learned": learned_readout(session, demonstrator, moves, rows),
     }
 
 
 def motion_comparison(session: Session, a: Demonstrator, b: Demonstrator) -> dict[str, Any]:
     """b minus a per direction and descriptor (with intervals), both sides' summaries in one length unit, and
     the learned-reward readout of each side's latest succeeded job (None where it has none)."""
-    rows_a, rows_b = demonstrator_recordings(session, a), demonstrator_recordings(session, b)
-    moves_a, _, unit = demonstrator_movements(session, a, others=rows_b)
-    moves_b, _, _ = demonstrator_movements(session, b, others=rows_a)
+    rows_a, rows_b = movement_recordings(session, a), movement_recordings(session, b)
+    unit, factors = common_unit([*rows_a, *rows_b])
+    moves_a, moves_b = (
+        recorded_movements(session, rows_a, factors),
+        recorded_movements(session, rows_b, factors),
+    )
     result = compare(moves_a, moves_b)
     return {
         "a": {"demonstrator_id": a.id, "name": a.name, **result["a"]},
@@ -103,7 +110,10 @@ def motion_comparison(session: Session, a: Demonstrator, b: Demonstrator) -> dic
         "units": descriptor_units(unit),
         "unit": unit,
         "directions": result["directions"],
-        "learned": {"a": learned_readout(session, a, moves_a), "b": learned_readout(session, b, moves_b)},
+        "learned": {
+            "a": learned_readout(session, a, moves_a, rows_a),
+            "b": learned_readout(session, b, moves_b, rows_b),
+        },
         "links": {"png": "/v1/motion-comparisons?format=png"},
     }
 
@@ -132,7 +142,10 @@ def latest_succeeded_job(session: Session, demonstrator: Demonstrator) -> Job | 
 
 
 def learned_readout(
-    session: Session, demonstrator: Demonstrator, moves: Sequence[Movement]
+    session: Session,
+    demonstrator: Demonstrator,
+    moves: Sequence[Movement],
+    recordings: Sequence[RecordingRow],
 ) -> dict[str, Any] | None:
     """The learned-reward readout of the demonstrator's latest succeeded job, per direction task (tasks named
     by a direction, as recordings name them): ``baseline_ring_centred`` (`direction_readout`: the mean over
@@ -141,7 +154,8 @@ def learned_readout(
     ``task_baseline_pearson`` on those states, ``path_bend`` (`readout.path_bend`, model-free: the
     preference's level per direction from which way the paths bend; None unless all eight directions are
     there), and the ``agreement`` of those values with the peak reach of ``moves`` and with the bend of
-    each demonstration's path (`readout.agreement`). None without a succeeded job."""
+    each demonstration's path (`readout.agreement`); ``recordings_after_job``: those of ``recordings``
+    (the demonstrator's) uploaded after the job. None without a succeeded job."""
     job = latest_succeeded_job(session, demonstrator)
     if job is None:
         return None
@@ -152,9 +166,7 @@ def learned_readout(
         "job_id": job.id,
         "baseline_reward_id": rows[0].id if rows else None,
         "caveat": BASELINE_CAVEAT,
-        "recordings_after_job": [
-            r.id for r in demonstrator_recordings(session, demonstrator) if r.created_at > job.created_at
-        ],
+        "recordings_after_job": [r.id for r in recordings if r.created_at > job.created_at],
         "directions": [],
     }
     reach: dict[str, list[float]] = {}
