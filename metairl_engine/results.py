@@ -9,7 +9,7 @@ import json
 import zipfile
 import zlib
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -43,8 +43,30 @@ class Progress:
 
 
 SAVE_FORMAT = 1
-"""Version of the file `FitResult.save` writes (in its meta): a file of another version is refused, not misread;
-one without a version is read as this one."""
+"""Version of the file `FitResult.save` writes (in its meta): a file of another version is refused, not misread.
+One without a version is read as this one, config check included: no release wrote such a file, only builds
+from before the version was stored, so one whose config lacks a setting added since is refused naming it, and
+one whose config is complete is read as it was saved."""
+
+
+def stored_config(data: object) -> FitConfig:
+    """The `FitConfig` a saved file holds, refused at ``/file`` unless it names every setting and no other: a
+    missing one would otherwise take today's default, misreading a fit made under another."""
+    if not isinstance(data, dict):
+        raise TypeError(f"its config is {type(data).__name__}, not an object")
+    known = {f.name for f in fields(FitConfig)}
+    missing, unknown = sorted(known - data.keys()), sorted(data.keys() - known)
+    problems = [f"lacks the setting {name!r}" for name in missing]
+    problems += [f"has the setting {name!r}, unknown to this metairl" for name in unknown]
+    if problems:
+        issues = [Issue("/file", f"was saved with a config that {p}") for p in problems]
+        raise InvalidInput(issues)
+    try:
+        return FitConfig.from_dict(data)
+    except InvalidInput as exc:  # a value this metairl refuses: the file is at fault, not the caller's config
+        raise InvalidInput(
+            [Issue("/file", f"was saved with a config whose {i.pointer} {i.message}") for i in exc.issues]
+        ) from None
 
 
 @dataclass(frozen=True)
@@ -99,7 +121,8 @@ class FitResult:
     @classmethod
     def load(cls, path: str | Path) -> FitResult:
         """A result written by `save` (no pickles are read); `InvalidInput` at ``/file`` for any other file —
-        truncated, corrupted, not one of ours — or one whose arrays do not fit together."""
+        truncated, corrupted, not one of ours — or one whose arrays do not fit together, saved in another format,
+        or whose config lacks a setting or has one this metairl does not know (`stored_config`)."""
         not_ours = "is not a result written by FitResult.save"
         if not zipfile.is_zipfile(
             path
@@ -129,7 +152,7 @@ class FitResult:
                 best_step=meta["best_step"],
                 shrinkage=meta.get("shrinkage", 1.0),
                 sparsity=meta.get("sparsity", 0.0),
-                config=FitConfig.from_dict(meta["config"]),
+                config=stored_config(meta["config"]),
             )
         except InvalidInput:
             raise

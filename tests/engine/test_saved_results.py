@@ -6,14 +6,16 @@ from __future__ import annotations
 import io
 import json
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 from metairl_engine import FitConfig, InvalidInput
 from metairl_engine.fit import fit
-from metairl_engine.results import FitResult
+from metairl_engine.results import SAVE_FORMAT, FitResult
 from tests.engine.helpers import goal_tasks_with_features
 
 
@@ -80,3 +82,56 @@ def test_a_file_missing_a_part_or_with_arrays_that_do_not_fit_is_invalid_input(
         FitResult.load(rewritten(saved, tmp_path, change))
     assert [i.pointer for i in exc.value.issues] == ["/file"] and words in str(exc.value)
     assert zipfile.is_zipfile(io.BytesIO(saved.read_bytes()))  # the original is untouched
+
+
+def with_meta(saved: Path, tmp_path: Path, edit: Callable[[dict[str, Any]], None]) -> Path:
+    """The saved file with its meta edited in place by ``edit``."""
+    with np.load(saved) as stored:
+        meta = json.loads(str(stored["meta"]))
+    edit(meta)
+    return rewritten(saved, tmp_path, {"meta": np.array(json.dumps(meta))})
+
+
+@pytest.mark.parametrize(
+    ("edit", "words"),
+    [
+        (lambda meta: meta["config"].pop("tabular_choice"), "lacks the setting 'tabular_choice'"),
+        (lambda meta: meta["config"].update(momentum=0.9), "has the setting 'momentum', unknown"),
+        (lambda meta: meta["config"].update(max_steps=-1), "config whose /config/max_steps"),
+    ],
+    ids=["lacking", "unknown", "refused value"],
+)
+def test_a_config_lacking_a_setting_or_with_an_unknown_or_refused_one_is_invalid_input_at_file(
+    saved: Path, tmp_path: Path, edit: Callable[[dict[str, Any]], None], words: str
+) -> None:
+    with pytest.raises(InvalidInput) as exc:
+        FitResult.load(with_meta(saved, tmp_path, edit))
+    assert [i.pointer for i in exc.value.issues] == ["/file"] and words in str(exc.value)
+
+
+def test_a_config_is_refused_naming_every_setting_it_lacks(saved: Path, tmp_path: Path) -> None:
+    def drop_two(meta: dict[str, Any]) -> None:
+        del meta["config"]["stay_at_ends"], meta["config"]["shrink_deviations"]
+
+    with pytest.raises(InvalidInput) as exc:
+        FitResult.load(with_meta(saved, tmp_path, drop_two))
+    assert [i.message for i in exc.value.issues] == [
+        "was saved with a config that lacks the setting 'shrink_deviations'",
+        "was saved with a config that lacks the setting 'stay_at_ends'",
+    ]
+
+
+def test_a_file_without_a_format_is_read_as_this_format_and_refused_if_its_config_lacks_a_setting(
+    saved: Path, tmp_path: Path
+) -> None:
+    with np.load(saved) as stored:
+        assert json.loads(str(stored["meta"]))["format"] == SAVE_FORMAT
+    whole = FitResult.load(with_meta(saved, tmp_path, lambda meta: meta.pop("format")))
+    assert whole.config == FitConfig(hidden=(8,), max_steps=5)
+
+    def older(meta: dict[str, Any]) -> None:
+        del meta["format"], meta["config"]["tabular_choice"]
+
+    with pytest.raises(InvalidInput) as exc:
+        FitResult.load(with_meta(saved, tmp_path, older))
+    assert [i.pointer for i in exc.value.issues] == ["/file"] and "'tabular_choice'" in str(exc.value)
