@@ -68,18 +68,25 @@ def receiver() -> Iterator[tuple[str, Received]]:
         server.server_close()
 
 
-def recorded(http: httpx.Client, name: str, reach: dict[str, float], seed: int = 0) -> str:
-    """A demonstrator with one recording (three out-and-back movements per direction of ``reach``) on a 10×10
-    velocity grid; its id."""
-    dem = ok(http.post("/v1/demonstrators", json={"name": name}))
+def record(
+    http: httpx.Client, demonstrator_id: str, name: str, reach: dict[str, float], seed: int = 0
+) -> str:
+    """Upload a recording (three out-and-back movements per direction of ``reach``) on a 10×10 velocity grid
+    to the demonstrator; the recording's id."""
     body = {
         "name": f"{name}, force plate",
         "bounds": PLATE,
         "grid": {"width": 10, "height": 10, "gamma": 0.9},
         "samples": cop_rows(reach, seed=seed),
     }
-    ok(http.post(f"/v1/demonstrators/{dem['id']}/recordings", json=body))
-    return str(dem["id"])
+    return str(ok(http.post(f"/v1/demonstrators/{demonstrator_id}/recordings", json=body))["id"])
+
+
+def recorded(http: httpx.Client, name: str, reach: dict[str, float], seed: int = 0) -> str:
+    """A demonstrator with one recording of ``reach`` (`record`); its id."""
+    dem_id = str(ok(http.post("/v1/demonstrators", json={"name": name}))["id"])
+    record(http, dem_id, name, reach, seed=seed)
+    return dem_id
 
 
 def directions(page: Page, table: str) -> list[str]:
@@ -174,6 +181,33 @@ def test_dashboard_reads_out_a_sessions_motion_beside_its_learned_rewards_and_co
     assert loss.get_attribute("class") == "num neg clear"
     page.wait_for_selector("#learned :text('No job on this demonstrator has succeeded yet')")
     assert page.locator(f".dem[data-demonstrator='{before}']").get_attribute("class") == "dem"
+    assert errors == []
+
+
+def test_dashboard_says_when_recordings_came_after_the_job_its_learned_readout_shows(
+    served: Served, browser: Browser
+) -> None:
+    http = httpx.Client(base_url=served.url, headers={"Authorization": f"Bearer {served.key}"}, timeout=60)
+    dem_id = recorded(http, "P3 unstimulated", {"forward": 0.1})
+    job_id = submit(http, dem_id, QUICK)
+    wait_until_succeeded(http, job_id)
+
+    page, errors = open_dashboard(browser, served.url, served.key)
+    page.click(f"[data-demonstrator='{dem_id}'] [data-action='motion']")
+    page.wait_for_selector(
+        f"#motion[data-demonstrator='{dem_id}'] #learned .learned-job:has-text('{job_id}')"
+    )
+    assert page.locator("#learned [data-role='stale']").count() == 0  # the fit saw every recording
+
+    later = record(http, dem_id, "P3 unstimulated, again", {"forward": 0.1}, seed=1)
+    summary = ok(http.get(f"/v1/demonstrators/{dem_id}/motion-summary"), 200)
+    assert summary["learned"]["job_id"] == job_id and summary["learned"]["recordings_after_job"] == [later]
+    page.click("#refresh")
+    stale = page.locator("#learned [data-role='stale']")
+    stale.wait_for()
+    assert stale.inner_text().startswith("1 recording(s) came after this job")
+    assert "the fit never saw them" in stale.inner_text()
+    assert page.locator("#motion-meta").inner_text() == "2 recordings"
     assert errors == []
 
 
