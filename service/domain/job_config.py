@@ -83,23 +83,55 @@ def fit_config(config: BaseModel | None) -> FitConfig:
     return FitConfig() if config is None else FitConfig.from_dict(config.model_dump())
 
 
-SETTINGS_ONLY_WITH: tuple[tuple[str, str, Any, str], ...] = (
-    ("bgi_k", "backup", "bgi", 'backup "bgi"'),
+NETWORKS = ("meta_irl",)
+"""The methods that fit networks: the only ones that read the networks' settings."""
+
+NETWORK_SETTINGS = (
+    "sharing",
+    "sharing_weight",
+    "sharing_states",
+    "sharing_blocks",
+    "baseline_features",
+    "baseline_elsewhere_weight",
+    "task_coordinates",
+    "task_features",
+    "shrink_deviations",
+    "tabular_inputs",
+    "tabular_choice",
+    "backup",
+    "bgi_k",
+    "hidden",
+    "fourier_octaves",
+    "learning_rate",
+    "holdout_fraction",
+    "patience",
+    "ensemble",
+    "seed",
+)
+"""Settings only the networks' fit reads: the tabular solvers (`maxent.fit_maxent`) read only method,
+confidence, max_steps and tolerance, and shared_maxent stay_at_ends too."""
+
+SETTINGS_ONLY_WITH: tuple[tuple[str, str, tuple[Any, ...] | None, str], ...] = (
+    *((name, "method", NETWORKS, 'method "meta_irl"') for name in NETWORK_SETTINGS),
+    ("stay_at_ends", "method", ("meta_irl", "shared_maxent"), 'method "meta_irl" or "shared_maxent"'),
+    ("bgi_k", "backup", ("bgi",), 'backup "bgi"'),
     ("sharing_weight", "sharing", None, "sharing"),
     ("sharing_states", "sharing", None, "sharing"),
 )
-"""(setting, the setting it depends on, the value that uses it — None: any but "none" — and how to say so):
-a setting the fit reads only under another's value."""
+"""(setting, the setting it depends on, the values of that setting that use it — None: any but "none" — and
+how to say so): a setting the fit reads only under another's values. A setting may have several rows; the
+first that applies is the one said, and lines come in `FitConfig`'s order of settings."""
 
 
 def ignored_settings(config: dict[str, Any]) -> list[str]:
     """One line per setting of a job's ``config`` changed from its default where another setting makes the fit
     ignore it (`SETTINGS_ONLY_WITH`): accepted, as any valid config is, but said, so a lab does not read a
     result as shaped by it."""
-    defaults = {f.name: f.default for f in fields(FitConfig)}
-    lines = []
+    defaults = FitConfig().to_dict()  # as a job stores them: lists, not tuples
+    lines: dict[str, str] = {}
     for name, other, used_with, what in SETTINGS_ONLY_WITH:
-        used = config.get(other) == used_with if used_with is not None else config.get(other) != "none"
-        if name in config and config[name] != defaults[name] and not used:
-            lines.append(f"{name} is used only with {what}; this job has {other} {config.get(other)!r}")
-    return lines
+        value = config.get(other, defaults[other])
+        used = value != "none" if used_with is None else value in used_with
+        if name in config and config[name] != defaults[name] and not used and name not in lines:
+            lines[name] = f"{name} is used only with {what}; this job has {other} {value!r}"
+    return [lines[name] for name in defaults if name in lines]  # in the config's own order

@@ -145,7 +145,8 @@ class JobOut(Resource):
 
     @computed_field(  # type: ignore[prop-decorator]
         description="Settings changed from their default that another setting makes the fit ignore (`bgi_k` "
-        "without backup bgi, the sharing settings without sharing), one sentence each; empty when none."
+        "without backup bgi, the sharing settings without sharing, the networks' settings with the tabular "
+        "methods), one sentence each; empty when none."
     )
     @property
     def ignored_settings(self) -> list[str]:

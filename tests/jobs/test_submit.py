@@ -5,15 +5,19 @@ Runs on the root fixtures' SQLite and PostgreSQL databases with the embedded bro
 
 from __future__ import annotations
 
-from typing import Any
+from dataclasses import fields
+from typing import Any, cast
 
 import pytest
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
 from metairl_engine.config import FitConfig
+from metairl_engine.maxent import fit_maxent
+from service.domain.job_config import SETTINGS_ONLY_WITH
 from service.jobs.queue import CeleryJobQueue
 from service.settings import Settings
+from tests.engine.test_maxent import as_tasks, goal_tasks
 from tests.jobs.helpers import QUICK, demonstrated_tasks, submit
 from tests.service.helpers import add_demonstrations, make_demonstrator, make_mdp, make_task
 
@@ -247,11 +251,55 @@ def test_a_job_says_which_of_its_settings_another_setting_makes_the_fit_ignore(
     plain = submit(client, auth, demonstrator_id, QUICK)
     assert plain["ignored_settings"] == []
     odd = submit(client, auth, demonstrator_id, QUICK | {"bgi_k": 3, "sharing": "none", "sharing_weight": 9})
-    assert odd["ignored_settings"] == [
-        "bgi_k is used only with backup \"bgi\"; this job has backup 'max'",
+    assert odd["ignored_settings"] == [  # in the config's order of settings
         "sharing_weight is used only with sharing; this job has sharing 'none'",
+        "bgi_k is used only with backup \"bgi\"; this job has backup 'max'",
     ]
     assert (
         client.get(f"/v1/jobs/{odd['id']}", headers=auth).json()["ignored_settings"]
         == odd["ignored_settings"]
     )
+
+
+def test_a_tabular_job_is_told_which_of_its_settings_the_solver_ignores(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    demonstrator_id, _ = demonstrated_tasks(client, auth, 1)
+    changed = QUICK | {"stay_at_ends": False, "sharing": "none", "sharing_weight": 9, "bgi_k": 3}
+    alone = submit(client, auth, demonstrator_id, changed | {"method": "maxent"})
+    networks_only = "is used only with method \"meta_irl\"; this job has method 'maxent'"
+    assert alone["ignored_settings"] == [
+        f"sharing {networks_only}",
+        f"sharing_weight {networks_only}",
+        'stay_at_ends is used only with method "meta_irl" or "shared_maxent"; this job has method \'maxent\'',
+        f"bgi_k {networks_only}",
+        f"hidden {networks_only}",
+        f"patience {networks_only}",
+    ]
+    shared = submit(client, auth, demonstrator_id, changed | {"method": "shared_maxent"})
+    assert shared["ignored_settings"] == [  # shared_maxent reads stay_at_ends
+        f"{name} is used only with method \"meta_irl\"; this job has method 'shared_maxent'"
+        for name in ("sharing", "sharing_weight", "bgi_k", "hidden", "patience")
+    ]
+
+
+@pytest.mark.parametrize("method", ["maxent", "shared_maxent"])
+def test_the_settings_a_tabular_job_is_told_are_ignored_are_those_its_solver_never_reads(method: str) -> None:
+    config = FitConfig(method=method, max_steps=3)  # type: ignore[arg-type]
+    read: set[str] = set()
+
+    class Recording:
+        """``config``, noting the name of every setting read from it."""
+
+        def __getattr__(self, name: str) -> Any:
+            read.add(name)
+            return getattr(config, name)
+
+    sims, _ = goal_tasks(n_tasks=2, n_demos=3)
+    fit_maxent(as_tasks(sims), cast(FitConfig, Recording()))
+    said = {
+        name
+        for name, other, used_with, _ in SETTINGS_ONLY_WITH
+        if other == "method" and used_with is not None and method not in used_with
+    }
+    assert said == {f.name for f in fields(FitConfig)} - read
