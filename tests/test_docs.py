@@ -394,6 +394,38 @@ def test_every_job_config_field_is_in_the_api_guide_with_its_default() -> None:
     assert rows == FitConfig().to_dict(), "docs/api.md's config table differs from FitConfig's defaults"
 
 
+CONFIG_RANGE = re.compile(r"^\|\s*`([a-z_]+)`\s*\|\s*`[^`]*`\s*\|([^|]*)\|", re.M)
+
+
+def documented_number(value: int | float) -> str:
+    """How the config table writes a bound: thousands separated, and 2^k − 1 for a large power of two less one."""
+    if isinstance(value, int) and value >= 2**32 and (value + 1).bit_count() == 1:
+        return f"2^{(value + 1).bit_length() - 1} − 1"
+    return f"{value:,}"
+
+
+SCHEMA_BOUNDS = {"minimum": "≥", "exclusiveMinimum": ">", "maximum": "≤", "exclusiveMaximum": "<"}
+"""The JSON schema's bounds, lower first, and how the config table writes each."""
+
+
+def documented_range(schema: dict[str, Any]) -> str:
+    """A setting's range as the config table writes it from its JSON schema: ``1 – 100,000`` where both ends are
+    accepted, else its bounds (``> 0, ≤ 1``); empty without bounds."""
+    bounds = [(sign, schema[key]) for key, sign in SCHEMA_BOUNDS.items() if key in schema]
+    if [sign for sign, _ in bounds] == ["≥", "≤"]:
+        return f"{documented_number(bounds[0][1])} – {documented_number(bounds[1][1])}"
+    return ", ".join(f"{sign} {documented_number(limit)}" for sign, limit in bounds)
+
+
+def test_every_job_config_setting_is_in_the_api_guide_with_its_range() -> None:
+    from service.domain.job_config import JobConfig
+
+    text = (REPO / "docs/api.md").read_text(encoding="utf-8")
+    documented = {name: cell.strip() for name, cell in CONFIG_RANGE.findall(text)}
+    schema = {name: documented_range(p) for name, p in JobConfig.model_json_schema()["properties"].items()}
+    assert documented == schema, "docs/api.md's config table differs from the job config schema's ranges"
+
+
 # ---------------------------------------------------------------- shell blocks, run against metairl serve
 
 NO_RUN = "no-run"
