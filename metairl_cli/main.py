@@ -30,6 +30,19 @@ The local lab's key is kept in METAIRL_DATA_DIR/local-api-key and printed again 
   metairl keys create --lab motion-lab   # prints a new key alone on the last line
   metairl keys list --lab motion-lab     # id, lab, created, last used, revoked
   metairl keys revoke 85039365110284c6   # by the id `keys list` shows: the next request gets 401""",
+    "keys create": """examples:
+  metairl keys create --lab motion-lab                            # prints the new key alone on the last line
+  KEY=$(metairl keys create --lab motion-lab | tail -n 1)         # the key alone, for a script
+  METAIRL_DATA_DIR=~/metairl metairl keys create --lab gait-lab   # for the service kept there
+
+The key is stored hashed and shown only this once; a lab may hold several keys.""",
+    "keys list": """examples:
+  metairl keys list                              # every lab's keys: id, lab, created, last used, revoked
+  metairl keys list --lab motion-lab             # one lab's (exit 1 if it has none)
+  metairl keys list | awk -F '\\t' '$5 == "-"'    # the keys still active""",
+    "keys revoke": """examples:
+  metairl keys revoke 85039365110284c6   # by the id `keys list` shows: the next request gets 401
+  metairl keys revoke "$KEY"             # or by the whole key""",
     "demo": """examples:
   metairl demo --quick                   # under a minute, with the key `metairl serve` keeps
   metairl demo --out results             # the full experiment; figure, heatmaps and tables in results/
@@ -50,14 +63,14 @@ def metairl_version() -> str:
 
 
 def command_parser(
-    sub: argparse._SubParsersAction[argparse.ArgumentParser], name: str, help: str
+    sub: argparse._SubParsersAction[argparse.ArgumentParser], name: str, help: str, *, within: str = ""
 ) -> argparse.ArgumentParser:
-    """A subcommand whose help ends with its examples."""
+    """A subcommand (of command ``within``, if given: ``keys``) whose help ends with its examples."""
     return sub.add_parser(
         name,
         help=help,
         description=help[0].upper() + help[1:] + ".",
-        epilog=EXAMPLES[name],
+        epilog=EXAMPLES[f"{within} {name}".strip()],
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
 
@@ -95,17 +108,28 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="jobs run at once, each with its share of the cores (default: METAIRL_WORKER_CONCURRENCY, else 1)",
     )
-    worker.add_argument("--quiet", action="store_true", help="no Celery start-up banner")
+    worker.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no Celery start-up banner nor INFO lines (warnings and errors only); 'celery@HOST ready.' once ready",
+    )
 
     keys = command_parser(sub, "keys", "manage API keys")
     keys_sub = keys.add_subparsers(dest="keys_command", required=True)
-    create = keys_sub.add_parser("create", help="create a lab (if new) and print a new API key for it")
+    create = command_parser(
+        keys_sub, "create", "create a lab (if new) and print a new API key for it", within="keys"
+    )
     create.add_argument("--lab", required=True, help="lab name; resources belong to the lab")
-    listing = keys_sub.add_parser(
-        "list", help="one key per line: id, lab, created, last used, revoked (tab-separated)"
+    listing = command_parser(
+        keys_sub,
+        "list",
+        "one key per line: id, lab, created, last used, revoked (tab-separated)",
+        within="keys",
     )
     listing.add_argument("--lab", default=None, help="only this lab's keys")
-    revoke = keys_sub.add_parser("revoke", help="revoke a key: the next request with it gets 401")
+    revoke = command_parser(
+        keys_sub, "revoke", "revoke a key: the next request with it gets 401", within="keys"
+    )
     revoke.add_argument("key_id", metavar="KEY_ID", help="the key's id (as listed), or the whole key")
 
     demo = command_parser(sub, "demo", "run the paper's terrain experiment against a running service")

@@ -26,7 +26,6 @@ from pathlib import Path
 from sqlalchemy.orm import Session
 
 from metairl_cli.keys import create_key
-from service.jobs.broker import broker_url
 from service.settings import Settings, get_settings
 from service.store.db import make_engine, migrate
 from service.store.keys import key_is_valid
@@ -41,6 +40,11 @@ WORKER_STABLE_S = 60.0
 """A worker that ran this long before dying is restarted after 1 s again (the backoff starts over)."""
 SHUTDOWN_GRACE_S = 15.0
 """How long children get to stop after SIGTERM (a running job is re-run later by the reaper) before SIGKILL."""
+ROOT_WARNING = "You're running the worker with superuser privileges"
+"""The start of the SecurityWarning Celery's worker gives as root (`celery.platforms.check_privileges`)."""
+EMBEDDED_BROKER_URL = "filesystem://localhost//"
+"""The embedded broker (`broker_url`'s ``filesystem://``) with its host named: without one kombu warns, at each
+worker start, that it assumes ``localhost``."""
 
 
 def default_api_workers() -> int:
@@ -53,7 +57,9 @@ def default_api_workers() -> int:
 
 def api_command(python: str, *, host: str, port: int, workers: int, access_log: bool = False) -> list[str]:
     """uvicorn serving the app with `workers` processes on uvloop and httptools, without its access log
-    unless ``access_log`` (a dashboard left open logs a line per poll: 1,155 in 12 minutes).
+    unless ``access_log`` (a dashboard left open logs a line per poll: 1,155 in 12 minutes), and without its
+    INFO lines on starting and stopping (`serve` says where it runs; uvicorn's level also gates its access
+    log, so that keeps INFO).
 
     uvloop sets ``TCP_NODELAY`` on every connection; without it uvicorn's multi-process mode leaves Nagle's
     algorithm on, and each reused keep-alive connection stalls ~40 ms per response on delayed ACKs.
@@ -63,12 +69,21 @@ def api_command(python: str, *, host: str, port: int, workers: int, access_log: 
         "--host", host, "--port", str(port), "--workers", str(workers),
         "--loop", "uvloop", "--http", "httptools",
         "--access-log" if access_log else "--no-access-log",
+        "--log-level", "info" if access_log else "warning",
     ]  # fmt: skip
 
 
 def worker_command(python: str) -> list[str]:
-    """One worker running one job at a time, without Celery's start-up banner."""
-    return [python, "-m", "metairl_cli.main", "worker", "--concurrency", "1", "--quiet"]
+    """One worker running one job at a time, quiet (`worker.main.run_worker`: no banner, warnings and errors
+    only), and without Celery's warning against running as root.
+
+    That warning is Celery's general advice (its ``--uid``, which `serve` has no use for); the danger it guards
+    against, a root worker unpickling what the broker holds, does not arise: the worker accepts JSON only,
+    and were pickle ever accepted Celery would refuse to start as root with a SecurityError, which no
+    warning filter hides. ``C_FORCE_ROOT`` would not silence it: it only lets a root worker accept pickle."""
+    return [
+        python, "-W", f"ignore:{ROOT_WARNING}", "-m", "metairl_cli.main", "worker", "--concurrency", "1", "--quiet",
+    ]  # fmt: skip
 
 
 def serve(*, host: str, port: int, workers: int | None = None, access_log: bool = False) -> int:
@@ -200,7 +215,7 @@ def child_environment(settings: Settings) -> dict[str, str]:
         **os.environ,
         "METAIRL_DATA_DIR": str(data_dir),
         "METAIRL_DATABASE_URL": settings.model_copy(update={"data_dir": data_dir}).resolved_database_url,
-        "METAIRL_BROKER_URL": broker_url(settings),
+        "METAIRL_BROKER_URL": settings.broker_url or EMBEDDED_BROKER_URL,
     }
 
 
@@ -211,7 +226,8 @@ def spawn(argv: list[str], env: Mapping[str, str]) -> subprocess.Popen[bytes]:
 
 def spawn_relayed(argv: list[str], env: Mapping[str, str]) -> tuple[subprocess.Popen[bytes], threading.Event]:
     """Start a child like `spawn`, its output relayed line by line to our stderr by a thread, and an event set
-    once a line says the Celery worker is ready (``celery@host ready.``)."""
+    once a line says the Celery worker is ready (``celery@host ready.``; that line is not relayed: `serve`
+    says it is running)."""
     child = subprocess.Popen(
         argv, env=dict(env), start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT
     )
@@ -221,10 +237,11 @@ def spawn_relayed(argv: list[str], env: Mapping[str, str]) -> tuple[subprocess.P
         assert child.stdout is not None
         for raw in child.stdout:
             line = raw.decode(errors="replace")
-            sys.stderr.write(line)
-            sys.stderr.flush()
             if line.rstrip().endswith(" ready."):
                 ready.set()
+                continue
+            sys.stderr.write(line)
+            sys.stderr.flush()
 
     threading.Thread(target=relay, name="worker-output", daemon=True).start()
     return child, ready

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import sys
+from typing import Any
 
 
 def prepare_environment(*, concurrency: int | None) -> None:
@@ -20,11 +22,20 @@ def prepare_environment(*, concurrency: int | None) -> None:
     os.environ.setdefault("GOMP_SPINCOUNT", "3000")
 
 
+def announce_ready(sender: Any, **_: Any) -> None:
+    """Print ``<hostname> ready.`` on the real stdout (Celery redirects ``sys.stdout`` to its log at WARNING)
+    once the worker consumes: a quiet worker logs no INFO line saying so, and `metairl serve` waits for one."""
+    print(f"{sender.hostname} ready.", file=sys.__stdout__, flush=True)
+
+
 def run_worker(*, concurrency: int | None = None, quiet: bool = False) -> int:
     """Run a worker until it is stopped (SIGTERM: finish the running jobs; SIGQUIT: now); the exit code.
     ``concurrency`` None: the setting's (``METAIRL_WORKER_CONCURRENCY``). ``quiet`` leaves out Celery's
-    start-up banner (`metairl serve` prints its own summary)."""
+    start-up banner and its INFO lines (Celery's log level WARNING: warnings, errors and failed jobs still
+    show) and says ``<hostname> ready.`` alone (`metairl serve` prints its own summary)."""
     prepare_environment(concurrency=concurrency)
+    from celery.signals import worker_ready
+
     from service.settings import Settings
     from worker.celery_app import app
 
@@ -32,12 +43,14 @@ def run_worker(*, concurrency: int | None = None, quiet: bool = False) -> int:
         Settings().worker_concurrency
     )  # the environment as prepared (the cached settings may predate it)
 
+    if quiet:
+        worker_ready.connect(announce_ready)
     code = app.start(
         argv=[
             *(["--quiet"] if quiet else []),
             "worker",
             f"--concurrency={concurrency}",
-            "--loglevel=INFO",
+            f"--loglevel={'WARNING' if quiet else 'INFO'}",
             "--without-mingle",
             "--without-gossip",
         ]
