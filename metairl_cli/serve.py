@@ -26,6 +26,7 @@ from pathlib import Path
 from sqlalchemy.orm import Session
 
 from metairl_cli.keys import create_key
+from service.jobs.broker import broker_url
 from service.settings import Settings, get_settings
 from service.store.db import make_engine, migrate
 from service.store.keys import key_is_valid
@@ -42,9 +43,6 @@ SHUTDOWN_GRACE_S = 15.0
 """How long children get to stop after SIGTERM (a running job is re-run later by the reaper) before SIGKILL."""
 ROOT_WARNING = "You're running the worker with superuser privileges"
 """The start of the SecurityWarning Celery's worker gives as root (`celery.platforms.check_privileges`)."""
-EMBEDDED_BROKER_URL = "filesystem://localhost//"
-"""The embedded broker (`broker_url`'s ``filesystem://``) with its host named: without one kombu warns, at each
-worker start, that it assumes ``localhost``."""
 
 
 def default_api_workers() -> int:
@@ -215,7 +213,7 @@ def child_environment(settings: Settings) -> dict[str, str]:
         **os.environ,
         "METAIRL_DATA_DIR": str(data_dir),
         "METAIRL_DATABASE_URL": settings.model_copy(update={"data_dir": data_dir}).resolved_database_url,
-        "METAIRL_BROKER_URL": settings.broker_url or EMBEDDED_BROKER_URL,
+        "METAIRL_BROKER_URL": broker_url(settings),
     }
 
 

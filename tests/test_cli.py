@@ -104,13 +104,16 @@ def test_serve_starts_its_worker_without_celerys_root_warning_but_keeps_its_root
     assert refused.returncode != 0 and "SecurityError" in refused.stderr
 
 
-def test_serve_names_the_embedded_brokers_host_so_kombu_does_not_warn(
+def test_the_embedded_broker_names_its_host_so_kombu_does_not_warn(
     tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
     from kombu import Connection
 
-    url = child_environment(Settings(data_dir=tmp_path, broker_url=None))["METAIRL_BROKER_URL"]
-    assert url.startswith("filesystem://")
+    from service.jobs.broker import broker_url
+
+    settings = Settings(data_dir=tmp_path, broker_url=None)
+    url = broker_url(settings)  # a worker alone, and the API
+    assert url.startswith("filesystem://") and child_environment(settings)["METAIRL_BROKER_URL"] == url
     with caplog.at_level(logging.WARNING, logger="kombu"):
         Connection(url).as_uri()  # what the worker logs on connecting
     assert caplog.records == []

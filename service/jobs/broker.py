@@ -19,9 +19,14 @@ TASK_NAME = "metairl.run_job"
 """The Celery task that runs one job; the API sends it by this name (it never imports the worker)."""
 
 
+EMBEDDED_BROKER_URL = "filesystem://localhost//"
+"""The embedded broker, Celery's ``filesystem://`` transport, with its host named: without one kombu warns, at
+each worker start, that it assumes ``localhost``."""
+
+
 def broker_url(settings: Settings) -> str:
     """The configured broker URL, or the embedded ``filesystem://`` broker."""
-    return settings.broker_url or "filesystem://"
+    return settings.broker_url or EMBEDDED_BROKER_URL
 
 
 def broker_folder(settings: Settings) -> Path:
