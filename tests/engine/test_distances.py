@@ -79,6 +79,25 @@ def test_canonicalisation_removes_exactly_the_shaping(world: tuple[MDP, np.ndarr
     np.testing.assert_allclose(canonicalise(np.full_like(r, 4.0), G, w), 0.0, atol=1e-5)
 
 
+def test_rewards_canonicalised_together_are_each_the_least_norm_representative_even_with_unweighted_states(
+    world: tuple[MDP, np.ndarray],
+) -> None:
+    mdp, _ = world
+    G = shaping_operator(transition_matrix(mdp), mdp.gamma, mdp.n_actions)
+    state_weights = np.random.default_rng(5).random(mdp.n_states) * (np.arange(mdp.n_states) % 3 > 0)
+    w = state_action_weights(state_weights, mdp.n_states, mdp.n_actions)  # a third of the states weigh 0
+    rewards = np.random.default_rng(6).normal(size=(3, mdp.n_states * mdp.n_actions))
+    together = canonicalise(rewards, G, w)
+    assert together.shape == rewards.shape
+    for r, c in zip(rewards, together, strict=True):
+        np.testing.assert_allclose(c, canonicalise(r, G, w), atol=1e-8)
+        # Dense least squares under D: what the weighted entries of C(R) must be.
+        root = np.sqrt(w)
+        phi = np.linalg.lstsq(root[:, None] * G.toarray(), root * r, rcond=None)[0]
+        weighted = w > 0
+        np.testing.assert_allclose(c[weighted], (r - G @ phi)[weighted], atol=1e-7)
+
+
 def test_bootstrap_interval_brackets_the_estimate_and_is_reproducible(
     world: tuple[MDP, np.ndarray],
 ) -> None:
