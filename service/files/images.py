@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import io
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -67,6 +68,16 @@ def matrix_pixel_size(*, n: int, dpi: int = 100) -> tuple[int, int]:
     return int(width_in * dpi), int(height_in * dpi)
 
 
+@dataclass(frozen=True)
+class Scale:
+    """A fixed colour scale for a quantity of known levels: a colour then means one level on every map."""
+
+    low: float
+    high: float
+    ticks: Mapping[float, str] = field(default_factory=dict)
+    """Colour-bar ticks at these values, labelled (none: matplotlib's)."""
+
+
 def heatmap_png(
     values: np.ndarray,
     *,
@@ -75,6 +86,7 @@ def heatmap_png(
     channel_names: Sequence[str] | None = None,
     trajectories: Sequence[np.ndarray] | None = None,
     colorbar_label: str = "reward",
+    scale: Scale | None = None,
     dpi: int = 100,
 ) -> bytes:
     """PNG of a per-state quantity drawn as one map per channel on a shared colour scale (see `heatmap_figure`)."""
@@ -86,6 +98,7 @@ def heatmap_png(
             channel_names=channel_names,
             trajectories=trajectories,
             colorbar_label=colorbar_label,
+            scale=scale,
             dpi=dpi,
         )
     )
@@ -99,9 +112,11 @@ def heatmap_figure(
     channel_names: Sequence[str] | None = None,
     trajectories: Sequence[np.ndarray] | None = None,
     colorbar_label: str = "reward",
+    scale: Scale | None = None,
     dpi: int = 100,
 ) -> Figure:
-    """The heatmap figure: a panel per channel, origin bottom-left (+y up = forward), one colour bar.
+    """The heatmap figure: a panel per channel, origin bottom-left (+y up = forward), one colour bar, spanning
+    the values or, given a `Scale`, fixed with its named ticks.
 
     Panel titles default to the velocity directions of `metairl_engine.grids.DIRECTION_NAMES` when there
     are 8 channels, "channel k" otherwise, and none for a single channel. Each trajectory (state indices)
@@ -119,7 +134,7 @@ def heatmap_figure(
     _check_dpi(dpi)
     names = _channel_names(layout.channels, channel_names)
     maps = arr.reshape(layout.channels, layout.height, layout.width)
-    low, high = float(arr.min()), float(arr.max())
+    low, high = (scale.low, scale.high) if scale else (float(arr.min()), float(arr.max()))
     if low == high:
         low, high = low - 0.5, high + 0.5
 
@@ -140,7 +155,9 @@ def heatmap_figure(
             ax.set_ylabel("y")
         if channel + cols >= layout.channels:
             ax.set_xlabel("x")
-    fig.colorbar(image, ax=panels, label=colorbar_label, shrink=0.9)
+    bar = fig.colorbar(image, ax=panels, label=colorbar_label, shrink=0.9)
+    if scale and scale.ticks:
+        bar.set_ticks(list(scale.ticks), labels=list(scale.ticks.values()))
     fig.suptitle(title)
     if trajectories:
         _overlay(fig, panels, trajectories, layout)

@@ -67,7 +67,7 @@ def download(
     """One reward, value function or policy as `fmt`; the ETag is checked before any array is read or drawn.
 
     The ETag hashes the stored blob's SHA-256 with everything else the bytes depend on (reward id, format,
-    quantity, and for csv/png the layout; for png the title and the demonstration batches drawn).
+    quantity, and for csv/png the layout; for png the title, the demonstration batches drawn and the scale).
     """
     blob_id = blob_id_of(ctx.row, quantity)
     if overlay != "none" and fmt != "png":
@@ -81,6 +81,7 @@ def download(
     if fmt == "png":
         _check_drawable(ctx, quantity)
         variant += [_title(ctx, quantity), ",".join(_demonstration_ids(session, ctx.task_ids, overlay))]
+        variant.append(repr(FIXED_SCALES.get(quantity)))
     etag = exports.etag_for(blob_sha256(session, blob_id), *variant)
     filename = exports.download_filename(
         demonstrator=ctx.demonstrator.name,
@@ -245,6 +246,13 @@ def _demonstration_ids(session: Session, task_ids: list[str], overlay: Overlay) 
     )
 
 
+FIXED_SCALES: dict[str, images.Scale] = {
+    "evidence": images.Scale(0.0, 1.0, {0.0: "elsewhere", 0.5: "next to a visit", 1.0: "visited"}),
+}
+"""Quantities of known levels drawn on one fixed colour scale (evidence: `metairl_engine.evidence`'s 1, ½, 0),
+so a colour means the same level on every map, whatever levels one map happens to hold."""
+
+
 def _heatmap(
     session: Session, ctx: RewardContext, values: np.ndarray, *, quantity: Quantity, overlay: Overlay
 ) -> bytes:
@@ -255,5 +263,10 @@ def _heatmap(
     if overlay == "demos":
         trajectories = [t.states for task_id in ctx.task_ids for t in load_trajectories(session, task_id)]
     return images.heatmap_png(
-        values, layout=layout, title=_title(ctx, quantity), trajectories=trajectories, colorbar_label=quantity
+        values,
+        layout=layout,
+        title=_title(ctx, quantity),
+        trajectories=trajectories,
+        colorbar_label=quantity,
+        scale=FIXED_SCALES.get(quantity),
     )

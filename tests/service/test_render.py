@@ -10,9 +10,11 @@ import pytest
 from matplotlib.lines import Line2D
 from PIL import Image
 
+from metairl_engine.evidence import NEXT_TO_VISITED, VISITED
 from metairl_engine.grids import DIRECTION_NAMES, velocity_state
 from metairl_engine.mdp import Layout
 from service.files.images import (
+    Scale,
     heatmap_figure,
     heatmap_pixel_size,
     heatmap_png,
@@ -107,6 +109,27 @@ def test_the_first_state_is_drawn_bottom_left() -> None:
     assert np.allclose(colour_at(0, 0), low, atol=0.02)
     assert np.allclose(colour_at(1, 0), low, atol=0.02)
     assert np.allclose(colour_at(1, 1), high, atol=0.02)
+
+
+def test_a_fixed_scale_draws_each_level_in_its_own_colour_whatever_levels_one_map_holds() -> None:
+    from matplotlib.image import AxesImage
+
+    from service.results.downloads import FIXED_SCALES
+
+    evidence = FIXED_SCALES["evidence"]
+    assert set(evidence.ticks) == {0.0, NEXT_TO_VISITED, VISITED}  # the engine's levels, each named
+    for values in (np.full(4, VISITED), np.array([NEXT_TO_VISITED, VISITED] * 2)):
+        fig = heatmap_figure(
+            values, layout=Layout(width=2, height=2), title="t", colorbar_label="evidence", scale=evidence
+        )
+        image = next(a for a in fig.axes[0].get_children() if isinstance(a, AxesImage))
+        assert image.norm.vmin == 0.0 and image.norm.vmax == 1.0  # not the map's own min and max
+        bar = fig.axes[-1]
+        assert [t.get_text() for t in bar.get_yticklabels()] == ["elsewhere", "next to a visit", "visited"]
+    unscaled = heatmap_figure(np.array([0.5, 1.0] * 2), layout=Layout(width=2, height=2), title="t")
+    image = next(a for a in unscaled.axes[0].get_children() if isinstance(a, AxesImage))
+    assert (image.norm.vmin, image.norm.vmax) == (0.5, 1.0)
+    assert Scale(0.0, 1.0).ticks == {}
 
 
 def test_trajectories_on_a_single_map_are_lines_with_start_and_end_markers() -> None:
