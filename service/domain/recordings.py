@@ -67,12 +67,18 @@ class DiscretiseIn(Body):
 Protocol = Literal["movements", "standing"]
 LabelValue = Annotated[str, StringConstraints(max_length=100)] | float | bool
 MAX_LABELS = 20
+NAME_MAX = 200
+"""Longest recording name (characters)."""
 
 
 class RecordingOptions(Body):
     """Everything about a recording except its samples (a CSV upload sends these as form fields)."""
 
-    name: str | None = Field(default=None, max_length=200, description="A label for the recording.")
+    name: str | None = Field(
+        default=None,
+        max_length=NAME_MAX,
+        description="A label for the recording; a file upload without one is named after its file.",
+    )
     mdp_id: str | None = Field(
         default=None, description="A velocity-grid MDP of your lab (8 velocity channels); or give `grid`."
     )

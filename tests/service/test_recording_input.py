@@ -23,13 +23,13 @@ def url(dem: dict[str, Any]) -> str:
     return f"/v1/demonstrators/{dem['id']}/recordings"
 
 
-def upload(client: TestClient, auth: dict[str, str], name: str, data: bytes, **fields: Any) -> Any:
+def upload(client: TestClient, auth: dict[str, str], filename: str, data: bytes, **fields: Any) -> Any:
     """POST a file as a standing trial of a new demonstrator, with form fields (objects as JSON)."""
     form = {"protocol": "standing"} | {
         k: v if isinstance(v, str) else json.dumps(v) for k, v in fields.items()
     }
     dem = make_demonstrator(client, auth)
-    return client.post(url(dem), files={"file": (name, data)}, data=form, headers=auth)
+    return client.post(url(dem), files={"file": (filename, data)}, data=form, headers=auth)
 
 
 def errors(response: Any) -> list[dict[str, str]]:
@@ -199,3 +199,16 @@ def test_a_field_a_recording_does_not_know_is_a_422_at_it(
     assert [e["pointer"] for e in found] == [pointer] and "misspelt" in found[0]["message"]
     (error,) = errors(upload(client, auth, "trial.csv", table(["t", "x", "y"], walk()), colour="red"))
     assert error["pointer"] == "/colour"
+
+
+# ------------------------------------------------------------------ names
+
+
+def test_a_file_uploaded_without_a_name_is_named_after_its_file_and_a_given_name_is_kept(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    data = table(["t", "x", "y"], walk())
+    unnamed = upload(client, auth, "C:\\plate exports\\BDS00012.csv", data, units="cm")
+    assert created(unnamed)["name"] == "BDS00012.csv"  # the file's name, without the client's folders
+    named = upload(client, auth, "trial.csv", data, units="cm", name="eyes open, firm")
+    assert created(named)["name"] == "eyes open, firm"

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import io
+from pathlib import PureWindowsPath
 from typing import Annotated, Literal
 
 from fastapi import APIRouter, Query, Request, Response
@@ -22,6 +23,7 @@ from service.domain.motion import CutTrajectory, RecordingDemonstrationsOut
 from service.domain.recordings import (
     EXAMPLE_GRID_IN,
     EXAMPLE_IN,
+    NAME_MAX,
     RecordingIn,
     RecordingOptions,
     RecordingOut,
@@ -125,6 +127,8 @@ async def upload_recording(
         )
         if samples.plate is None and samples.units != options.units:  # a COP CSV's header gave the unit
             options = options.model_copy(update={"units": samples.units})
+        if options.name is None and body.file.filename:  # a lab names its trials by their files
+            options = options.model_copy(update={"name": PureWindowsPath(body.file.filename).name[:NAME_MAX]})
     else:
         options, samples = body, json_samples(body)
     check_float32(samples)
