@@ -248,6 +248,32 @@ def scale_section() -> list[str]:
     return [*out, ""]
 
 
+def comparisons_section() -> list[str]:
+    """A job's comparison matrix in the API process: seconds and memory on velocity grids up to 80,000 states."""
+    stored = load("comparisons_results.json")
+    out = ["## Comparison matrix: EPIC with dynamics in the API process", ""]
+    if stored is None:
+        return [*out, "No stored run: `python -m benchmarks.comparisons` makes one.", ""]
+    out += [
+        "EPIC with dynamics between every pair of k rewards (a job of k − 1 tasks and its baseline), what "
+        "`GET /v1/jobs/{id}/comparison-matrix` computes: each reward canonicalised by a conjugate-gradient solve, "
+        'all k in lockstep (docs/architecture.md, "Canonicalising rewards"). Each case in a fresh process; '
+        "memory is its peak resident size above what the process held before (the MDP and rewards built), the "
+        "request's share of the API's memory (`METAIRL_API_MAX_REQUEST_MEMORY_MB` is 512 by default).",
+        "",
+        *provenance_lines([stored["provenance"]], [stored["provenance"]["command"]]),
+        "",
+        "| velocity grid | states | γ | rewards | wall s | CPU s | memory added MiB |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for r in stored["rows"]:
+        out.append(
+            f"| {r['size']}×{r['size']} × 8 | {r['states']:,} | {r['gamma']} | {r['rewards']} | {r['wall_s']:.1f} "
+            f"| {r['cpu_s']:.1f} | {r['added_mib']:.0f} |"
+        )
+    return [*out, ""]
+
+
 def load_section() -> list[str]:
     """API throughput and latency under wrk, from the last `load` run."""
     stored = load("load_results.json")
@@ -351,6 +377,7 @@ def page() -> str:
         *accuracy_section(),
         *fit_time_section(),
         *scale_section(),
+        *comparisons_section(),
         *load_section(),
         *versus_section(),
         *uncertainty_section(),
