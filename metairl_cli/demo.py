@@ -19,7 +19,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from sqlalchemy.engine import make_url
 from sqlalchemy.orm import Session
 from tqdm import tqdm
 
@@ -38,7 +37,7 @@ from metairl_cli.serve import local_key
 from metairl_client import APIConnectionError, Client, JobState, MetairlError
 from metairl_engine.sim.terrain import World
 from service.settings import Settings, get_settings
-from service.store.db import make_engine, migrate
+from service.store.db import make_engine, migrate, missing_sqlite_file
 
 API_KEY_ENV = "METAIRL_API_KEY"
 POLL_S = 0.5
@@ -103,15 +102,6 @@ def resolve_api_key(api_key: str | None, *, settings: Settings) -> str:
             return local_key(session, settings.data_dir)
     finally:
         engine.dispose()
-
-
-def missing_sqlite_file(settings: Settings) -> Path | None:
-    """The SQLite file the settings point at when it does not exist; None for an existing file or a server."""
-    url = make_url(settings.resolved_database_url)
-    if url.get_backend_name() != "sqlite" or not url.database or url.database == ":memory:":
-        return None
-    path = Path(url.database)
-    return None if path.exists() else path
 
 
 def run_experiment(api: Client, settings: DemoSettings, *, out: Path) -> int:

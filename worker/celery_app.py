@@ -4,7 +4,8 @@ Start it with ``metairl worker`` or ``python -m celery -A worker.celery_app work
 acknowledged only after its job finished (``acks_late``) and is given back if the pool process dies
 (``reject_on_worker_lost``); because neither saves a job when the whole worker is killed (the embedded
 broker loses the in-flight message, Redis redelivers only after its visibility timeout), each worker
-also runs the reaper, which re-queues or fails running jobs whose heartbeat stopped.
+also runs the reaper, which re-queues or fails running jobs whose heartbeat stopped. Before its pool starts, a
+worker waits until the database is migrated (`worker.startup`).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import logging
 from typing import Any, ClassVar
 
 from celery import Celery, bootsteps
+from celery.signals import worker_init
 
 from service.jobs.broker import celery_config
 from service.settings import get_settings
@@ -72,6 +74,14 @@ class WebhookStep(bootsteps.StartStopStep):
             self.thread = None
 
 
+def wait_for_migrations(**_: Any) -> None:
+    """On ``worker_init``, before the pool, the reaper or the consumer start: wait until the database is
+    migrated, so a worker started before the API neither fails every query nor creates an empty database."""
+    from worker.startup import wait_until_migrated
+
+    wait_until_migrated(get_settings())
+
+
 def make_app() -> Celery:
     """The Celery app configured from `Settings` (broker shared with the API via `service.jobs.broker`)."""
     settings = get_settings()
@@ -90,6 +100,7 @@ def make_app() -> Celery:
     )
     app.steps["worker"].add(ReaperStep)
     app.steps["worker"].add(WebhookStep)
+    worker_init.connect(wait_for_migrations, weak=False)  # once however many apps: one receiver per function
     return app
 
 

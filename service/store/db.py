@@ -8,7 +8,7 @@ import re
 import threading
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 from sqlalchemy import URL, Connection, Engine, create_engine, event, inspect, make_url, text
 from sqlalchemy.ext.asyncio import AsyncEngine, create_async_engine
@@ -151,30 +151,77 @@ def migrate(engine: Engine) -> None:
 
 _REVISION = re.compile(r"""^(down_revision|revision)\s*(?::[^=]+)?=\s*(?:["']([^"']+)["']|None)""", re.M)
 
+SchemaState = Literal["current", "empty", "behind", "ahead"]
+"""Where a database stands against this code's migrations (`schema_state`)."""
 
-def head_revision() -> str | None:
-    """The newest migration's revision id, read from the files in migrations/versions (no Alembic import);
-    None unless there is exactly one head."""
+
+def _revision_graph() -> tuple[set[str], set[str]]:
+    """Every revision id in migrations/versions, and those some revision names as its parent (no Alembic)."""
     revisions: set[str] = set()
     parents: set[str] = set()
     for path in (MIGRATIONS_DIR / "versions").glob("*.py"):
         for name, value in _REVISION.findall(path.read_text(encoding="utf-8")):
             if value:
                 (revisions if name == "revision" else parents).add(value)
+    return revisions, parents
+
+
+def head_revision() -> str | None:
+    """The newest migration's revision id, read from the files in migrations/versions (no Alembic import);
+    None unless there is exactly one head."""
+    revisions, parents = _revision_graph()
     heads = revisions - parents
     return heads.pop() if len(heads) == 1 else None
 
 
-def is_current(engine: Engine) -> bool:
-    """Whether the database is stamped with exactly the newest revision."""
-    head = head_revision()
-    if head is None:
-        return False
+def schema_state(engine: Engine) -> SchemaState:
+    """Whether the database is at this code's newest revision (``current``), has no schema (``empty``), is
+    stamped with an older revision this code can upgrade (``behind``) or with one it does not know, written
+    by newer code (``ahead``); one query, no Alembic import."""
     with engine.connect() as connection:
         if not inspect(connection).has_table("alembic_version"):
-            return False
-        stamped = connection.execute(text("SELECT version_num FROM alembic_version")).scalars().all()
-    return list(stamped) == [head]
+            return "empty"
+        stamped = set(connection.execute(text("SELECT version_num FROM alembic_version")).scalars())
+    revisions, parents = _revision_graph()
+    if not stamped:
+        return "empty"
+    if stamped == revisions - parents and len(stamped) == 1:
+        return "current"
+    return "behind" if stamped <= revisions else "ahead"
+
+
+def is_current(engine: Engine) -> bool:
+    """Whether the database is stamped with exactly the newest revision."""
+    return schema_state(engine) == "current"
+
+
+def missing_sqlite_file(settings: Settings) -> Path | None:
+    """The SQLite file the settings point at when it does not exist; None for an existing file or a server."""
+    url = make_url(settings.resolved_database_url)
+    if url.get_backend_name() != "sqlite" or not url.database or url.database == ":memory:":
+        return None
+    path = Path(url.database)
+    return None if path.exists() else path
+
+
+def database_state(settings: Settings) -> SchemaState:
+    """`schema_state` of the configured database, without creating it: a SQLite file that does not exist is
+    ``empty`` and stays absent (connecting would create it, and its folder)."""
+    if missing_sqlite_file(settings) is not None:
+        return "empty"
+    engine = make_engine(settings)
+    try:
+        return schema_state(engine)
+    finally:
+        engine.dispose()
+
+
+def database_name(settings: Settings) -> str:
+    """The configured database for a message: a SQLite file's path, else the URL without its password."""
+    url = make_url(settings.resolved_database_url)
+    if url.get_backend_name() == "sqlite" and url.database:
+        return str(Path(url.database).resolve()) if url.database != ":memory:" else ":memory:"
+    return url.render_as_string(hide_password=True)
 
 
 @contextlib.contextmanager

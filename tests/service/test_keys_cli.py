@@ -11,10 +11,12 @@ from pathlib import Path
 
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
+from sqlalchemy import inspect
 
 from metairl_cli.keys import create_key
 from metairl_cli.serve import LOCAL_KEY_FILE, local_key
 from service.settings import Settings
+from service.store.db import database_state, make_engine
 from service.store.keys import add_key, list_keys, revoke_key, split_key
 
 REPO = Path(__file__).resolve().parents[2]
@@ -22,10 +24,15 @@ REPO = Path(__file__).resolve().parents[2]
 
 def metairl(settings: Settings, *args: str) -> subprocess.CompletedProcess[str]:
     """Run the `metairl` command on the test's database."""
-    env = os.environ | {
-        "METAIRL_DATA_DIR": str(settings.data_dir),
-        "METAIRL_DATABASE_URL": settings.resolved_database_url,
-    }
+    return metairl_with(
+        {"METAIRL_DATA_DIR": str(settings.data_dir), "METAIRL_DATABASE_URL": settings.resolved_database_url},
+        *args,
+    )
+
+
+def metairl_with(settings: dict[str, str], *args: str) -> subprocess.CompletedProcess[str]:
+    """Run the `metairl` command with exactly these ``METAIRL_*`` settings in its environment."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("METAIRL_")} | settings
     return subprocess.run(
         [sys.executable, "-m", "metairl_cli.main", *args],
         cwd=REPO,
@@ -75,9 +82,49 @@ def test_list_shows_each_key_of_a_lab_and_revoke_makes_the_next_request_401(
     assert after[key_id(api_key)][4].endswith("Z") and after[key_id(second)][4] == "-"
 
     unknown = metairl(settings, "keys", "revoke", "0123456789abcdef")
-    assert unknown.returncode == 1 and "no API key" in unknown.stdout
+    assert unknown.returncode == 1 and "no API key" in unknown.stderr and unknown.stdout == ""
     nobody = metairl(settings, "keys", "list", "--lab", "no such lab")
-    assert nobody.returncode == 1 and "has no API keys" in nobody.stdout
+    assert nobody.returncode == 1 and "has no API keys" in nobody.stderr and nobody.stdout == ""
+
+
+def test_list_and_revoke_on_a_mistyped_data_dir_say_so_on_stderr_and_create_nothing(tmp_path: Path) -> None:
+    """Where `keys list` printed nothing and exited 0 on a new empty database; `keys create` still starts one."""
+    folder = tmp_path / "mistyped"
+    database = folder / "metairl.db"
+    for args in (
+        ("keys", "list"),
+        ("keys", "list", "--lab", "local"),
+        ("keys", "revoke", "0123456789abcdef"),
+    ):
+        refused = metairl_with({"METAIRL_DATA_DIR": str(folder)}, *args)
+        assert refused.returncode == 1 and refused.stdout == "", args
+        assert refused.stderr.splitlines() == [refused.stderr.strip()], args  # one line
+        assert f"no metairl database at {database}" in refused.stderr, args
+        assert not folder.exists(), args
+
+    created = metairl_with({"METAIRL_DATA_DIR": str(folder)}, "keys", "create", "--lab", "new-lab")
+    assert created.returncode == 0 and created.stderr == "", created.stderr
+    listed = metairl_with({"METAIRL_DATA_DIR": str(folder)}, "keys", "list")
+    assert listed.returncode == 0 and [line.split("\t")[1] for line in listed.stdout.splitlines()] == [
+        "new-lab"
+    ]
+    assert key_id(created.stdout.splitlines()[-1]) == listed.stdout.split("\t")[0]
+
+
+def test_list_refuses_a_database_without_the_schema_and_leaves_it_so(empty_database_url: str) -> None:
+    """On each backend: an existing but never migrated database (a mistyped PostgreSQL URL's) is not migrated."""
+    listed = metairl_with({"METAIRL_DATABASE_URL": empty_database_url}, "keys", "list")
+    assert listed.returncode == 1 and listed.stdout == ""
+    assert "no metairl database at" in listed.stderr
+    engine = make_engine(Settings(database_url=empty_database_url))
+    assert database_state(Settings(database_url=empty_database_url)) == "empty"
+    assert inspect(engine).get_table_names() == []
+    engine.dispose()
+
+
+def test_an_empty_lab_name_is_refused_on_stderr() -> None:
+    refused = metairl_with({}, "keys", "create", "--lab", "  ")
+    assert refused.returncode == 2 and refused.stdout == "" and "--lab must not be empty" in refused.stderr
 
 
 def test_serve_keeps_the_local_key_and_mints_a_new_one_only_when_it_is_revoked(

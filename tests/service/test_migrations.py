@@ -4,17 +4,19 @@ migrate safely."""
 from __future__ import annotations
 
 import threading
+from pathlib import Path
 
 from alembic import command
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
 from alembic.script import ScriptDirectory
-from sqlalchemy import func, inspect, select
+from sqlalchemy import func, inspect, select, text
 
 import service.store.models
 from service.settings import Settings
 from service.store.db import (
     alembic_config,
+    database_state,
     head_revision,
     is_current,
     make_engine,
@@ -123,3 +125,28 @@ def test_removing_the_shrinkage_and_sparsity_columns_keeps_every_jobs_rows(empty
     with make_sessionmaker(engine)() as session:
         assert session.get_one(Job, "job_migrations").shrinkage is None
     engine.dispose()
+
+
+def test_a_database_is_told_empty_behind_current_or_ahead_of_this_code(empty_database_url: str) -> None:
+    """What a worker waits on (`empty`, `behind`) and refuses (`ahead`: stamped by newer code), on each backend."""
+    settings = Settings(database_url=empty_database_url)
+    assert database_state(settings) == "empty"
+    engine = make_engine(settings)
+    with engine.connect() as connection:
+        previous = ScriptDirectory.from_config(alembic_config(connection)).get_revision("head").down_revision
+        command.upgrade(alembic_config(connection), str(previous))
+        connection.commit()
+    assert database_state(settings) == "behind"
+    migrate(engine)
+    assert database_state(settings) == "current"
+    with engine.begin() as connection:
+        connection.execute(text("UPDATE alembic_version SET version_num = '9999_from_newer_code'"))
+    assert database_state(settings) == "ahead"
+    engine.dispose()
+
+
+def test_the_state_of_a_sqlite_file_that_does_not_exist_is_empty_and_creates_nothing(tmp_path: Path) -> None:
+    """Asking never creates the file (nor its folder): a worker on a mistyped data folder leaves no database."""
+    folder = tmp_path / "mistyped"
+    assert database_state(Settings(data_dir=folder)) == "empty"
+    assert not folder.exists()
