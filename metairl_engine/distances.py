@@ -35,10 +35,14 @@ from metairl_engine.metrics import unit_scale
 
 RIDGE = 1e-12
 """Relative ridge of the LU fallback's solve: pins Φ on states of weight 0, negligible elsewhere."""
-CG_TOLERANCE = 1e-10
-"""Relative residual at which the conjugate-gradient solve for Φ stops."""
+FLAT_VARIANCE = 1e-10
+"""`pairwise_epic`: a canonical reward whose D-variance is below this share of the reward's second moment is
+taken as all shaping."""
+CG_TOLERANCE = 1e-12
+"""Relative residual at which the conjugate-gradient solve for Φ stops: `pairwise_epic` subtracts inner
+products that nearly cancel for shaping-equivalent rewards, so at 1e-10 their distance came out 3e-6, not 0."""
 CG_MAX_ITERATIONS = 20_000
-"""Conjugate-gradient steps before the LU takes over (the 80,000-state velocity grid needs ~600 at γ 0.999)."""
+"""Conjugate-gradient steps before the LU takes over (the 80,000-state velocity grid needs under 1,000 at γ 0.999)."""
 
 
 @dataclass(frozen=True)
@@ -115,25 +119,29 @@ def lockstep_cg(
     return x, False
 
 
-def canonicalise(reward: np.ndarray, shaping: sp.csr_matrix, weights: np.ndarray) -> np.ndarray:
-    """C(R) = R − G Φ*, Φ* minimising ‖R − G Φ‖ under ``weights``: the least-norm reward shaping-equivalent to R.
-    ``reward`` is one flat (S·A,) reward or k of them as (k, S·A).
-
-    Φ* solves the normal equations Gᵀ D G Φ = Gᵀ D R by conjugate gradients (`lockstep_cg`): memory of the
-    order of G's entries, where a sparse LU's fill-in took 1.2 GB on the 80,000-state velocity grid (about
-    0.6 s a reward there, against 8.8 s for the LU; canonical rewards within 5e-10 of its; ~600 steps at
-    γ 0.999). States of weight 0 leave Φ free there; the solve, started at 0, leaves it 0. Should it not
-    converge, the LU solves instead (with a tiny ridge pinning Φ where it is free)."""
-    r = np.asarray(reward, dtype=np.float64)
-    rows = r.reshape(-1, r.shape[-1])
+def potentials(targets: np.ndarray, shaping: sp.csr_matrix, weights: np.ndarray) -> np.ndarray:
+    """Φ* ((S, k)) solving the normal equations Gᵀ D G Φ = ``targets`` (Gᵀ D R, one column per reward) by
+    conjugate gradients (`lockstep_cg`): memory of the order of G's entries, where a sparse LU's fill-in took
+    1.2 GB on the 80,000-state velocity grid (0.7 s of CPU for a reward there at γ 0.9 and 1.8 s at γ 0.999,
+    against 9 s for the LU; canonical rewards within 3e-12 of its, relative to their peak). States of weight 0 leave Φ free there; the solve,
+    started at 0, leaves it 0. Should it not converge, the LU solves instead (a tiny ridge pinning Φ where
+    it is free)."""
     normal = (shaping.T @ (sp.diags(weights) @ shaping)).tocsr()
     diagonal = normal.diagonal()
     floor = float(diagonal.max(initial=0.0)) * 1e-12 or 1.0  # a state no weighted step reaches: its row is 0
-    targets = np.asarray(shaping.T @ (weights * rows).T)  # (S, k)
     phi, converged = lockstep_cg(normal, targets, 1.0 / np.maximum(diagonal, floor))
     if not converged:
         ridged = normal + RIDGE * (float(diagonal.mean()) or 1.0) * sp.identity(normal.shape[0])
         phi = splu(ridged.tocsc()).solve(targets)
+    return np.asarray(phi)
+
+
+def canonicalise(reward: np.ndarray, shaping: sp.csr_matrix, weights: np.ndarray) -> np.ndarray:
+    """C(R) = R − G Φ*, Φ* minimising ‖R − G Φ‖ under ``weights`` (`potentials`): the least-norm reward
+    shaping-equivalent to R. ``reward`` is one flat (S·A,) reward or k of them as (k, S·A)."""
+    r = np.asarray(reward, dtype=np.float64)
+    rows = r.reshape(-1, r.shape[-1])
+    phi = potentials(np.asarray(shaping.T @ (weights * rows).T), shaping, weights)
     return np.asarray(rows - (shaping @ phi).T).reshape(r.shape)
 
 
@@ -226,14 +234,38 @@ def pairwise_epic(
     n_actions: int,
     state_weights: np.ndarray | None = None,
 ) -> np.ndarray:
-    """The symmetric matrix of EPIC distances (with dynamics) between every pair of ``rewards``
-    (each canonicalised once)."""
+    """The symmetric matrix of EPIC distances (with dynamics) between every pair of ``rewards`` ((S,) or
+    (S, A) each), from the D-inner products of their canonical forms without forming them.
+
+    With bᵢ = Gᵀ D Rᵢ and Φᵢ its `potentials`, the normal equations make C(Rᵢ) D-orthogonal to every G Φ, so
+    ⟨C(Rᵢ), C(Rⱼ)⟩_D = ⟨Rᵢ, Rⱼ⟩_D − bᵢᵀ Φⱼ and the D-mean of C(Rᵢ) is ⟨Rᵢ, 1⟩_D − Φᵢᵀ Gᵀ D 1 (D sums to 1):
+    memory of a few vectors of S values per reward beside the solve's, where k canonical rewards of S·A
+    values each took 300 MB for 17 rewards on the 80,000-state velocity grid."""
     n_states = transitions.shape[1]
     w = state_action_weights(state_weights, n_states, n_actions)
     shaping = shaping_operator(transitions, gamma, n_actions)
-    canon = canonicalise(np.stack([as_state_action(r, n_states, n_actions) for r in rewards]), shaping, w)
-    out = np.zeros((len(canon), len(canon)))
-    for i in range(len(canon)):
-        for j in range(i + 1, len(canon)):
-            out[i, j] = out[j, i] = _epic(canon[i], canon[j], w)
-    return out
+    # Scale-free, so each at unit peak: products of rewards near ±1e308 stay finite.
+    scaled = [unit_scale(np.asarray(r, dtype=np.float64)) for r in rewards]
+    targets = np.column_stack([shaping.T @ (w * as_state_action(r, n_states, n_actions)) for r in scaled])
+    phi = potentials(targets, shaping, w)
+    if all(r.shape == (n_states,) for r in scaled):  # state rewards: D summed over actions
+        per_state = w.reshape(n_states, n_actions).sum(axis=1)
+        x = np.stack(scaled)
+        inner, level = (x * per_state) @ x.T, x @ per_state
+    else:
+        x = np.stack([as_state_action(r, n_states, n_actions) for r in scaled])
+        inner, level = (x * w) @ x.T, x @ w
+    gram = inner - targets.T @ phi
+    mean = level - phi.T @ (shaping.T @ w)
+    covariance = (gram + gram.T) / 2 - np.outer(mean, mean)
+    variance = np.diag(covariance).copy()
+    # A reward all shaping correlates with nothing, as `_pearson` has it; "all" up to what float32 transition
+    # probabilities leave of a constant's canonical form (~1e-7 of it, so ~1e-14 of its second moment).
+    flat = variance <= FLAT_VARIANCE * np.maximum(np.diag(inner), 1e-300)
+    spread = np.sqrt(np.where(flat, 1.0, variance))
+    rho = np.clip(covariance / np.outer(spread, spread), -1.0, 1.0)
+    rho[flat, :] = 0.0
+    rho[:, flat] = 0.0
+    out = np.sqrt(np.maximum(0.0, 1.0 - rho) / 2.0)
+    np.fill_diagonal(out, 0.0)
+    return np.asarray(out)

@@ -13,6 +13,7 @@ from metairl_engine.distances import (
     Distances,
     canonicalise,
     distances,
+    pairwise_epic,
     shaped,
     shaping_operator,
     state_action_weights,
@@ -123,3 +124,31 @@ def test_occupancy_weights_only_count_weighted_states(world: tuple[MDP, np.ndarr
     assert occupancy.epic < uniform.epic  # … and matters less once those states are not weighted
     with pytest.raises(ValueError, match="not all zero"):
         dist(mdp, reward, other, state_weights=np.zeros(mdp.n_states))
+
+
+@pytest.mark.parametrize("weighted", [False, True], ids=["uniform", "a third unweighted"])
+def test_the_pairwise_matrix_is_each_pairs_epic_for_state_and_state_action_rewards(
+    world: tuple[MDP, np.ndarray], weighted: bool
+) -> None:
+    mdp, reward = world
+    T = transition_matrix(mdp)
+    rng = np.random.default_rng(7)
+    weights = rng.random(mdp.n_states) * (np.arange(mdp.n_states) % 3 > 0) if weighted else None
+    shaped_copy = shaped(
+        reward, rng.normal(size=mdp.n_states), transitions=T, gamma=mdp.gamma, n_actions=mdp.n_actions
+    )
+    for rewards in (
+        [reward, 3.0 * reward + 1.0, rng.normal(size=mdp.n_states), -reward],
+        [reward, shaped_copy, rng.normal(size=(mdp.n_states, mdp.n_actions))],
+    ):
+        matrix = pairwise_epic(
+            rewards, transitions=T, gamma=mdp.gamma, n_actions=mdp.n_actions, state_weights=weights
+        )
+        expected = [[dist(mdp, a, b, state_weights=weights).epic for b in rewards] for a in rewards]
+        np.testing.assert_allclose(matrix, expected, atol=1e-6)
+        assert matrix[0, 1] == pytest.approx(0.0, abs=1e-6)  # a positive scale, a shift or shaping: the same
+    # A constant is all shaping (up to the float32 transitions): it correlates with nothing.
+    constant = pairwise_epic(
+        [reward, np.full(mdp.n_states, 2.0)], transitions=T, gamma=mdp.gamma, n_actions=mdp.n_actions
+    )
+    assert constant[0, 1] == pytest.approx(np.sqrt(0.5))
