@@ -25,7 +25,7 @@ from tests.service.helpers import PLATE, cop_rows
 from tests.ui.helpers import ARTIFACTS, QUICK, ok, open_dashboard, submit, wait_until_succeeded
 
 if TYPE_CHECKING:
-    from playwright.sync_api import Browser, Page
+    from playwright.sync_api import Browser, Page, Route
 
 pytestmark = [pytest.mark.worker, pytest.mark.slow, pytest.mark.browser]
 
@@ -208,6 +208,96 @@ def test_dashboard_says_when_recordings_came_after_the_job_its_learned_readout_s
     assert stale.inner_text().startswith("1 recording(s) came after this job")
     assert "the fit never saw them" in stale.inner_text()
     assert page.locator("#motion-meta").inner_text() == "2 recordings"
+    assert errors == []
+
+
+def standing_only(http: httpx.Client, name: str) -> str:
+    """A demonstrator with one quiet-standing trial and no movements; its id."""
+    from tests.ui.test_dashboard_sway import standing_trial
+
+    dem_id = str(ok(http.post("/v1/demonstrators", json={"name": name}))["id"])
+    body = {"protocol": "standing", "name": f"{name}, eyes open", "samples": standing_trial(0, 0.3)}
+    ok(http.post(f"/v1/demonstrators/{dem_id}/recordings", json=body))
+    return dem_id
+
+
+def test_motion_readout_is_offered_for_and_compared_with_recorded_movements_only(
+    served: Served, browser: Browser
+) -> None:
+    http = httpx.Client(base_url=served.url, headers={"Authorization": f"Bearer {served.key}"}, timeout=60)
+    mover = recorded(http, "P5 unstimulated", UNSTIMULATED)
+    stander = standing_only(http, "P5 standing")
+    page, errors = open_dashboard(browser, served.url, served.key)
+    page.wait_for_selector(f".dem[data-demonstrator='{stander}'] [data-action='sway']")
+    assert page.locator(f".dem[data-demonstrator='{stander}'] [data-action='motion']").count() == 0
+
+    page.click(f".dem[data-demonstrator='{mover}'] [data-action='motion']")
+    page.wait_for_selector(f"#motion[data-demonstrator='{mover}'] #kinematics tbody tr")
+    partners = page.locator("#compare-with option").evaluate_all("os => os.map(o => o.value)")
+    assert stander not in partners
+    for partner in partners:  # each b has movements to compare with
+        listing = ok(http.get(f"/v1/demonstrators/{partner}/recordings"), 200)["data"]
+        assert any(r["protocol"] == "movements" for r in listing), partner
+    assert errors == []
+
+
+def test_learned_readout_prints_nothing_but_its_parts_under_the_verdict(
+    served: Served, browser: Browser
+) -> None:
+    http = httpx.Client(base_url=served.url, headers={"Authorization": f"Bearer {served.key}"}, timeout=60)
+    dem_id = recorded(http, "P6 unstimulated", {"forward": 0.1})
+    job_id = submit(http, dem_id, QUICK)
+    wait_until_succeeded(http, job_id)
+    page, errors = open_dashboard(browser, served.url, served.key)
+    page.click(f".dem[data-demonstrator='{dem_id}'] [data-action='motion']")
+    page.wait_for_selector(f"#motion[data-demonstrator='{dem_id}'] #learned [data-role='agreement']")
+    assert page.locator("#learned [data-role='stale']").count() == 0  # nothing came after the job
+    texts = page.locator("#learned").evaluate("box => [...box.childNodes].map(n => n.textContent)")
+    assert "null" not in texts and "undefined" not in texts
+    assert "null" not in page.locator("#motion").inner_text()
+    assert errors == []
+
+
+def test_each_column_of_the_session_comparison_has_one_number_format(
+    served: Served, browser: Browser
+) -> None:
+    http = httpx.Client(base_url=served.url, headers={"Authorization": f"Bearer {served.key}"}, timeout=60)
+    a = recorded(http, "P7 unstimulated", UNSTIMULATED)
+    b = recorded(http, "P7 stimulated", STIMULATED, seed=1)
+    comparison = ok(http.post("/v1/motion-comparisons", json={"a": a, "b": b}), 200)
+    # One direction's deviation barely changes (below 0.001), the others by centimetres; a mean of -0 too.
+    small = comparison["directions"][0]["deviation_diff"]
+    small |= {"mean": -6.11e-4, "low": -1.2e-3, "high": 2.5e-4}
+    comparison["directions"][1]["deviation_diff"] |= {"mean": 0.0312, "low": 0.011, "high": 0.052}
+    comparison["directions"][2]["deviation_diff"] |= {"mean": -1e-9}
+
+    def answer(route: Route) -> None:
+        if "format=png" in route.request.url:
+            route.continue_()
+        else:
+            route.fulfill(status=200, json=comparison)
+
+    page, errors = open_dashboard(browser, served.url, served.key)
+    page.route(lambda url: url.split("?")[0].endswith("/v1/motion-comparisons"), answer)
+    page.click(f".dem[data-demonstrator='{a}'] [data-action='motion']")
+    page.select_option("#compare-with", b)
+    page.wait_for_selector(f"#comparison[data-b='{b}'] caption:has-text('P7 stimulated − P7 unstimulated')")
+    columns = page.locator("#comparison thead th").all_inner_texts()
+    rows = page.locator("#comparison tbody tr").evaluate_all(
+        "rows => rows.map(r => [...r.children].map(c => c.innerText))"
+    )
+    # The means of Δ deviation, at the column's scale (millimetres of metres), no "-0.000".
+    assert [row[columns.index("Δ deviation")].split("\n")[0] for row in rows[:3]] == [
+        "-0.001",
+        "0.031",
+        "0.000",
+    ]
+    for k in range(2, len(columns)):  # every column: one number of decimals throughout, no exponents
+        numbers = [
+            n for row in rows for n in row[k].replace("[", " ").replace("]", " ").replace(",", " ").split()
+        ]
+        decimals = {len(n.split(".")[1]) if "." in n else 0 for n in numbers}
+        assert len(decimals) == 1 and not any("e" in n for n in numbers), (columns[k], numbers)
     assert errors == []
 
 

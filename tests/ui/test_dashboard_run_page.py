@@ -55,6 +55,15 @@ def demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Demo]:
         yield Demo(served, http, build_demo(http))
 
 
+@pytest.fixture(scope="module")
+def recorded_job(demo: Demo) -> str:
+    """A succeeded job of a recorded session on a velocity grid (eight channels, one a direction): its id."""
+    session = recorded(demo.http, "recorded session", UNSTIMULATED)
+    job_id = submit(demo.http, session, QUICK)
+    wait_for(demo.http, [job_id])
+    return job_id
+
+
 def dashboard(browser: Browser, demo: Demo) -> tuple[Page, list[str]]:
     """The page with the key pasted, once the job list has rows."""
     page, errors = open_dashboard(browser, demo.served.url, demo.served.key)
@@ -211,11 +220,9 @@ def test_every_download_link_answers_200_and_saves_a_file(demo: Demo, browser: B
 
 
 def test_a_recorded_sessions_run_page_links_its_demonstrations_and_each_velocity_channel(
-    demo: Demo, browser: Browser
+    demo: Demo, browser: Browser, recorded_job: str
 ) -> None:
-    session = recorded(demo.http, "recorded session", UNSTIMULATED)
-    job_id = submit(demo.http, session, QUICK)
-    wait_for(demo.http, [job_id])
+    job_id = recorded_job
     page, errors = dashboard(browser, demo)
     page.locator(f"tr[data-job='{job_id}'] [data-action='run']").click()
     page.wait_for_selector("#downloads tr[data-recording] a[data-download]")
@@ -472,4 +479,183 @@ def test_filters_by_status_and_demonstrator_and_paging_change_the_job_list(
     assert not set(listed(page)) & set(first_page)
     page.click("#jobs-prev")
     page.wait_for_function("() => document.querySelectorAll('#jobs tr[data-job]').length === 15")
+    assert errors == []
+
+
+def open_results(page: Page, demo: Demo, job_id: str) -> None:
+    """Show a job's results from its row, the job list filtered to its demonstrator (the jobs the module's
+    other tests add may have moved the row off the first page)."""
+    job = ok(demo.http.get(f"/v1/jobs/{job_id}"), 200)
+    page.select_option("#filter-demonstrator", job["demonstrator_id"])
+    page.locator(f"tr[data-job='{job_id}'] [data-action='results']").click()
+
+
+def heatmaps_loaded(page: Page, count: int) -> None:
+    """Wait until the results show ``count`` heatmaps, each loaded and shown."""
+    page.wait_for_function(
+        "n => { const imgs = [...document.querySelectorAll('#heatmaps img[data-reward]')];"
+        " return imgs.length === n && imgs.every(i => i.complete && i.naturalWidth > 0 && !i.hidden); }",
+        arg=count,
+    )
+
+
+DIRECTIONS = [
+    "right",
+    "forward right",
+    "forward",
+    "forward left",
+    "left",
+    "backward left",
+    "backward",
+    "backward right",
+]
+"""The velocity grid's channels, as the server's heatmaps title their panels."""
+
+
+def test_the_lightbox_names_a_velocity_grids_channels_by_direction_and_titles_the_one_drawn(
+    demo: Demo, browser: Browser, recorded_job: str
+) -> None:
+    page, errors = dashboard(browser, demo)
+    open_results(page, demo, recorded_job)
+    heatmaps_loaded(page, 4)  # the baseline and three directions
+    # Eight small panels in a picture: the card is wide enough for each to be legible at 1366 px.
+    shown = page.locator("#heatmaps img[data-reward]").nth(1).bounding_box()
+    assert shown is not None and shown["width"] >= 560, shown
+    page.locator("#results").screenshot(path=ARTIFACTS / "results-velocity-grid.png")
+    page.locator("#heatmaps img[data-reward]").nth(1).click()
+    assert page.locator("#lightbox-channels button").all_inner_texts() == ["all channels", *DIRECTIONS]
+    # The bar over the picture is opaque: the page's heading never shows through it.
+    background = page.locator(".lightbox-bar").evaluate("bar => getComputedStyle(bar).backgroundColor")
+    assert background.startswith("rgb("), background
+    page.click("#lightbox-channels button[data-channel='2']")
+    page.wait_for_selector("#lightbox-canvas[data-channel='2']")
+    task = page.locator("#heatmaps figure h4").nth(1).inner_text()
+    assert (
+        page.locator("#lightbox-channel-title")
+        .inner_text()
+        .startswith(f"{task} — moving forward · reward from ")
+    )
+    assert page.locator("#lightbox-channel-title").is_visible()
+    page.screenshot(path=ARTIFACTS / "lightbox-one-direction.png")
+    page.keyboard.press("Escape")
+    page.wait_for_selector("#lightbox", state="hidden")
+    assert errors == []
+
+
+def test_a_heatmap_opens_full_size_from_the_keyboard_and_focus_returns_on_escape(
+    demo: Demo, browser: Browser, recorded_job: str
+) -> None:
+    page, errors = dashboard(browser, demo)
+    open_results(page, demo, recorded_job)
+    heatmaps_loaded(page, 4)
+    picture = page.locator("#heatmaps img[data-reward]").nth(1)
+    # Tab reaches it: it is in the page's tab order, after the row's Results button.
+    assert picture.evaluate("img => img.tabIndex") == 0
+    picture.focus()
+    page.keyboard.press("Enter")
+    page.wait_for_selector("#lightbox:not([hidden])")
+    assert page.evaluate("() => document.activeElement.id") == "lightbox-close"
+    page.keyboard.press("Escape")
+    page.wait_for_selector("#lightbox", state="hidden")
+    assert picture.evaluate("img => img === document.activeElement")
+    page.keyboard.press(" ")
+    page.wait_for_selector("#lightbox:not([hidden])")
+    page.keyboard.press("Enter")  # on Close
+    page.wait_for_selector("#lightbox", state="hidden")
+    assert picture.evaluate("img => img === document.activeElement")
+    assert errors == []
+
+
+def test_results_draw_the_heatmaps_without_waiting_for_the_comparison_matrix(
+    demo: Demo, browser: Browser, recorded_job: str
+) -> None:
+    job_id = recorded_job
+    matrix = ok(demo.http.get(f"/v1/jobs/{job_id}/comparison-matrix"), 200)
+    matrix["matrix"][0][1] = matrix["matrix"][1][0] = -0.004  # rounds to zero: no "-0.00"
+    page, errors = dashboard(browser, demo)
+    held: list[Route] = []
+    page.route(lambda url: url.split("?")[0].endswith("/comparison-matrix"), lambda route: held.append(route))
+    open_results(page, demo, job_id)
+    heatmaps_loaded(page, 4)
+    page.wait_for_function("() => document.querySelectorAll('#key-states tbody tr').length === 15")
+    assert len(held) == 1 and page.locator("#matrix").inner_text() == "Loading…"
+    held[0].fulfill(status=200, json=matrix)
+    page.wait_for_selector("#matrix table")
+    cells = page.locator("#matrix tbody td").all_inner_texts()
+    assert cells[1] == cells[4] == "0.00" and not any(c.startswith("-0.00") for c in cells)
+
+    # A matrix that fails says so in its own box; the heatmaps stay.
+    open_results(page, demo, demo.ids["four_l2"])
+    page.wait_for_function("() => document.querySelectorAll('#heatmaps img[data-reward]').length === 5")
+    while len(held) < 2:
+        page.wait_for_timeout(50)
+    held[1].fulfill(
+        status=503, json={"title": "Service Unavailable", "detail": "the matrix is still being computed"}
+    )
+    page.wait_for_selector("#matrix :text('Unavailable: the matrix is still being computed')")
+    assert page.locator("#heatmaps img[data-reward]").count() == 5
+    assert errors == []
+
+
+def test_key_states_name_each_channel_and_say_when_a_task_reward_is_the_baseline(
+    demo: Demo, browser: Browser, recorded_job: str
+) -> None:
+    tasks = ok(demo.http.get(f"/v1/jobs/{recorded_job}/rewards"), 200)["tasks"]
+    answers = {
+        t["reward_id"]: ok(demo.http.get(f"/v1/rewards/{t['reward_id']}/key-states?top=5"), 200)
+        for t in tasks
+    }
+    first, second = (answers[t["reward_id"]] for t in tasks[:2])
+    first["states"][0]["channel"] = 0  # a state moving right: channel 0, a direction like any other
+    for state in second["states"]:  # a task reward that is the baseline (λ 0)
+        state |= {"reward": state["baseline"], "difference": 0.0}
+
+    def answer(route: Route) -> None:
+        reward_id = route.request.url.split("/v1/rewards/")[1].split("/")[0]
+        route.fulfill(status=200, json=answers[reward_id])
+
+    page, errors = dashboard(browser, demo)
+    page.route(lambda url: "/key-states" in url, answer)
+    open_results(page, demo, recorded_job)
+    table = page.locator(f"#key-states table[data-task='{first['task_id']}']")
+    table.wait_for()
+    where = table.locator("[data-role='where']").all_inner_texts()
+    expected = [f"{s['x']}, {s['y']} ({DIRECTIONS[s['channel']]})" for s in first["states"]]
+    assert where == expected
+    same = page.locator(f"#key-states table[data-task='{second['task_id']}']")
+    assert (
+        same.locator("[data-role='equals-baseline']")
+        .inner_text()
+        .startswith("This task's reward equals the baseline everywhere")
+    )
+    assert same.locator("tbody tr").count() == 1  # no list of states that depart by 0
+    assert errors == []
+
+
+def test_the_job_form_takes_yes_no_settings_from_a_list_and_a_list_setting_as_numbers_with_commas(
+    demo: Demo, browser: Browser
+) -> None:
+    page, errors = dashboard(browser, demo)
+    sent: list[dict[str, object]] = []
+
+    def hold(route: Route) -> None:
+        if route.request.method != "POST":
+            route.continue_()
+            return
+        sent.append(json.loads(route.request.post_data or "{}"))
+        route.fulfill(status=422, json={"title": "Unprocessable", "detail": "held by the test"})
+
+    page.route(lambda url: url.split("?")[0].endswith("/v1/jobs"), hold)
+    page.click("#submit-settings summary")
+    toggle = page.locator("#submit-config select[name='tabular_choice']")
+    assert toggle.locator("option").all_inner_texts() == ["true (default)", "false"]
+    toggle.select_option("false")
+    assert page.locator("#submit-config input[name='hidden']").get_attribute("placeholder") == "100, 50, 25"
+    page.fill("#submit-config input[name='hidden']", "8, 8")
+    page.fill("#submit-config input[name='baseline_features']", "0 1")
+    page.select_option("#submit-demonstrator", demo.ids["two_tasks"])
+    page.click("#submit-job")
+    page.wait_for_selector("#submit-error:has-text('held by the test')")
+    config = sent[0]["config"]
+    assert config == {"tabular_choice": False, "hidden": [8, 8], "baseline_features": [0, 1]}, config
     assert errors == []

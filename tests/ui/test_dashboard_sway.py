@@ -13,10 +13,11 @@ import pytest
 
 from tests.served import Served, metairl_serve
 from tests.shared_data import shared_data
-from tests.ui.helpers import ARTIFACTS, ok, open_dashboard
+from tests.ui.helpers import ARTIFACTS, another_labs_key, ok, open_dashboard
+from tests.ui.test_dashboard_motion_and_webhooks import record
 
 if TYPE_CHECKING:
-    from playwright.sync_api import Browser
+    from playwright.sync_api import Browser, Page, Route
 
 pytestmark = [pytest.mark.slow, pytest.mark.browser]
 
@@ -112,4 +113,127 @@ def test_dashboard_says_when_a_plate_files_cop_leaves_its_plate(served: Served, 
     page.click(f"[data-demonstrator='{dem['id']}'] [data-action='sway']")
     page.wait_for_selector("[data-role='sway-samples-caveat']")
     assert page.locator("[data-role='sway-samples-caveat']").inner_text() == caveat
+    assert errors == []
+
+
+def client(served: Served) -> httpx.Client:
+    """An HTTP client of the served API with its lab's key."""
+    return httpx.Client(base_url=served.url, headers={"Authorization": f"Bearer {served.key}"}, timeout=60)
+
+
+def stand(http: httpx.Client, demonstrator_id: str, name: str | None = "trial", seed: int = 0) -> str:
+    """Upload a 20-s standing trial (named ``name``, none if None) to the demonstrator; its id."""
+    body = {"protocol": "standing", "units": "cm", "samples": standing_trial(seed, 0.3)}
+    if name is not None:
+        body["name"] = name
+    return str(ok(http.post(f"/v1/demonstrators/{demonstrator_id}/recordings", json=body))["id"])
+
+
+def moving_and_standing(http: httpx.Client, name: str) -> str:
+    """A demonstrator with recorded movements and a standing trial; its id."""
+    dem_id = str(ok(http.post("/v1/demonstrators", json={"name": name}))["id"])
+    record(http, dem_id, name, {"forward": 0.1})
+    stand(http, dem_id, f"{name}, standing")
+    return dem_id
+
+
+def open_both_panels(page: Page, dem_id: str) -> None:
+    """Open the demonstrator's motion readout and its quiet-standing panel; wait until both are drawn."""
+    page.click(f"[data-demonstrator='{dem_id}'] [data-action='motion']")
+    page.wait_for_selector(f"#motion[data-demonstrator='{dem_id}'] #kinematics tbody tr")
+    page.click(f"[data-demonstrator='{dem_id}'] [data-action='sway']")
+    page.wait_for_selector(f"#sway[data-demonstrator='{dem_id}'] tr[data-measure='area95']")
+
+
+def test_a_key_of_another_lab_clears_every_panel_of_the_previous_lab(
+    served: Served, browser: Browser
+) -> None:
+    http = client(served)
+    dem_id = moving_and_standing(http, "first lab's subject")
+    other_key = another_labs_key(served, "second lab")
+    page, errors = open_dashboard(browser, served.url, served.key)
+    console: list[str] = []
+    page.on("console", lambda message: console.append(message.text) if message.type == "error" else None)
+    open_both_panels(page, dem_id)
+
+    page.fill("#key-input", other_key)
+    page.click("#key-use")
+    page.wait_for_selector("#demonstrators :text('No demonstrators yet.')")
+    page.wait_for_selector("#mdps :text('No MDPs yet.')")
+    for panel in ("#sway", "#motion", "#results", "#run"):
+        assert page.locator(panel).is_hidden(), panel
+    # Nothing of the first lab is left in the page, shown or hidden (titles, pickers, labels).
+    text = page.evaluate("() => document.body.textContent")
+    assert "first lab's subject" not in text and dem_id not in text
+    assert page.locator("#sway-picture img, #comparison img").count() == 0
+    assert errors == [] and console == []  # no 404 either (the page names its icon)
+
+
+def test_deleting_a_demonstrator_or_refreshing_after_its_deletion_closes_its_panels(
+    served: Served, browser: Browser
+) -> None:
+    http = client(served)
+    on_page = moving_and_standing(http, "withdrawn on the page")
+    elsewhere = moving_and_standing(http, "withdrawn elsewhere")
+    page, errors = open_dashboard(browser, served.url, served.key)
+    page.on("dialog", lambda dialog: dialog.accept())  # the confirm before the delete
+    open_both_panels(page, on_page)
+    page.click(f"[data-demonstrator='{on_page}'] [data-action='delete-demonstrator']")
+    page.wait_for_selector(f".dem[data-demonstrator='{on_page}']", state="detached")
+    page.wait_for_selector("#sway", state="hidden")
+    page.wait_for_selector("#motion", state="hidden")
+
+    open_both_panels(page, elsewhere)
+    assert http.delete(f"/v1/demonstrators/{elsewhere}").status_code == 204
+    page.click("#refresh")
+    page.wait_for_selector(f".dem[data-demonstrator='{elsewhere}']", state="detached")
+    page.wait_for_selector("#sway", state="hidden")
+    page.wait_for_selector("#motion", state="hidden")
+    assert not page.locator("#message").inner_text().startswith("404")
+    assert errors == []
+
+
+def test_a_trial_without_a_name_is_shown_by_its_id_and_no_panel_prints_null(
+    served: Served, browser: Browser
+) -> None:
+    http = client(served)
+    dem_id = str(ok(http.post("/v1/demonstrators", json={"name": "unnamed trials"}))["id"])
+    rec_id = stand(http, dem_id, name=None)
+    rec = ok(http.get(f"/v1/demonstrators/{dem_id}/recordings"), 200)["data"][0]
+    shown = rec["name"] or rec_id
+    page, errors = open_dashboard(browser, served.url, served.key)
+    box = page.locator(f"[data-demonstrator='{dem_id}']")
+    box.wait_for()
+    assert "null" not in box.inner_text() and f"{shown} (standing" in box.inner_text()
+    page.click(f"[data-demonstrator='{dem_id}'] [data-action='sway']")
+    page.wait_for_selector(f"#sway[data-demonstrator='{dem_id}'] tr[data-measure='area95']")
+    assert page.locator("#sway-recording option").all_inner_texts() == [shown]
+    assert page.locator("#sway .sub").inner_text() == "1000 samples at 50 Hz over 20.000 s"
+    assert "null" not in page.locator("#sway").inner_text()
+    assert errors == []
+
+
+def test_a_trials_picture_waits_behind_a_placeholder_while_the_trial_loads(
+    served: Served, browser: Browser
+) -> None:
+    http = client(served)
+    dem_id = str(ok(http.post("/v1/demonstrators", json={"name": "slow trial"}))["id"])
+    stand(http, dem_id)
+    page, errors = open_dashboard(browser, served.url, served.key)
+    held: list[Route] = []
+    page.route(
+        lambda url: url.split("?")[0].endswith("/sway") and "format=png" not in url,
+        lambda route: held.append(route),
+    )
+    page.click(f"[data-demonstrator='{dem_id}'] [data-action='sway']")
+    while not held:
+        page.wait_for_timeout(50)
+    assert page.locator("#sway-picture img").count() == 0  # no picture without a source: no broken image
+    assert page.locator("#sway-picture").inner_text() == "Loading…"
+    for route in held:
+        route.continue_()
+    page.wait_for_function(
+        "() => { const img = document.querySelector('#sway-picture img');"
+        " return img && img.complete && img.naturalWidth > 0 && !img.hidden; }"
+    )
     assert errors == []

@@ -26,7 +26,9 @@ const state = {
   selected: null, // job id whose results are shown
   motion: null, // demonstrator id whose motion readout is shown
   blobUrls: { results: [], comparison: [], sway: [] }, // object URLs of the pictures shown, by the view that shows them
-  swayCall: 0, // bumped by each showSway, so an earlier call's late answers never redraw the sway panel
+  sway: null, // demonstrator id whose quiet-standing panel is shown
+  swayCall: 0, // bumped by each trial shown, so an earlier trial's late answers never redraw the sway panel
+  swayView: 0, // bumped by each showSway (and hideSway), the same for the panel's comparison of conditions
   listTimer: null,
   generation: 0, // bumped when the key changes, so late answers for the old key are dropped
   jobsRequests: 0, // job-list requests made: only the answer to the latest is drawn
@@ -44,6 +46,7 @@ const state = {
   configSchema: null, // JobConfig's properties from /openapi.json (defaults, ranges, descriptions)
   mdps: [],
   lightboxCall: 0, // bumped by each channel drawn or lightbox closed, so a late reward never draws over it
+  lightboxOpener: null, // the element focused when the lightbox opened: focus returns to it on closing
 };
 
 class ApiError extends Error {
@@ -65,10 +68,22 @@ function el(tag, attrs = {}, ...children) {
     else if (name.startsWith("on")) node.addEventListener(name.slice(2), value);
     else node.setAttribute(name, value === true ? "" : String(value));
   }
-  for (const child of children.flat()) {
-    if (child === undefined || child === null || child === false) continue;
-    node.append(child instanceof Node ? child : document.createTextNode(String(child)));
-  }
+  node.append(...nodes(children));
+  return node;
+}
+
+// Children as `el` takes them (nodes, strings, lists of them) as nodes; null, undefined and false are left out,
+// where the DOM's own append and replaceChildren would print them as "null" or "undefined".
+function nodes(children) {
+  return children
+    .flat(Infinity)
+    .filter((child) => child !== undefined && child !== null && child !== false)
+    .map((child) => (child instanceof Node ? child : document.createTextNode(String(child))));
+}
+
+// Replace a node's children with these (as `el` takes them).
+function fill(node, ...children) {
+  node.replaceChildren(...nodes(children));
   return node;
 }
 
@@ -76,7 +91,25 @@ function fmt(x, digits = 3) {
   if (x === null || x === undefined || Number.isNaN(x)) return "–";
   const a = Math.abs(x);
   if (a !== 0 && (a < 1e-3 || a >= 1e5)) return x.toExponential(2);
-  return x.toFixed(digits);
+  return fixed(x, digits);
+}
+
+// Always `digits` decimals, and a value that rounds to zero without a sign ("0.00", never "-0.00").
+function fixed(x, digits = 3) {
+  if (x === null || x === undefined || Number.isNaN(x)) return "–";
+  const text = x.toFixed(digits);
+  return /^-0\.?0*$/.test(text) ? text.slice(1) : text;
+}
+
+// One format for every value of a column, from the largest of them: fixed decimals enough for its two
+// leading digits (3 at least, 6 at most; 3 for a column of rounding noise), exponents only for a column of
+// large values; "–" for a missing one.
+function columnFormat(values) {
+  const finite = values.filter((v) => typeof v === "number" && Number.isFinite(v)).map(Math.abs);
+  const top = finite.length ? Math.max(...finite) : 0;
+  if (top >= 1e5) return (x) => (typeof x === "number" && Number.isFinite(x) ? x.toExponential(2) : "–");
+  const digits = top >= 1e-6 ? Math.min(6, Math.max(3, 1 - Math.floor(Math.log10(top)))) : 3;
+  return (x) => fixed(x, digits);
 }
 
 function showMessage(text, kind = "error") {
@@ -161,11 +194,10 @@ function forgetKey() {
   showMessage("The key was removed from this tab.", "info");
 }
 
+// Stop following the lab's jobs and clear everything shown of it, so that nothing of one lab stays on
+// screen (or is redrawn by a late answer) once another key is in use.
 function stopAll() {
   state.generation += 1;
-  state.resultsCall += 1;
-  state.motionCall += 1;
-  state.comparisonCall += 1;
   state.webhooksCall += 1;
   for (const controller of state.watching.values()) controller.abort();
   state.watching.clear();
@@ -174,21 +206,90 @@ function stopAll() {
   state.jobs.clear();
   state.rows.clear();
   state.demonstrators.clear();
-  state.selected = null;
-  state.motion = null;
-  state.run = null;
-  state.history = null;
-  state.runCall += 1;
+  state.mdps = [];
   state.cursors = [null];
   state.nextCursor = null;
-  $("run").hidden = true;
-  $("jobs").replaceChildren();
-  $("results").hidden = true;
-  $("motion").hidden = true;
-  $("webhooks").replaceChildren();
+  hideRun();
+  hideResults();
+  hideMotion();
+  hideSway();
+  closeLightbox();
+  fill($("jobs"));
+  fill($("demonstrators"), loading());
+  fill($("mdps"), loading());
+  fill($("filter-demonstrator"), el("option", { value: "" }, "any"));
+  fill($("submit-demonstrator"));
+  fill($("submit-tasks"), el("legend", {}, "Tasks"));
+  fill($("webhooks"));
   hideSecret();
   $("webhook-error").hidden = true;
+  submitError("");
   releaseBlobs();
+}
+
+// The run page hidden and emptied; its late answers dropped.
+function hideRun() {
+  state.runCall += 1;
+  state.run = null;
+  state.history = null;
+  const section = $("run");
+  section.hidden = true;
+  delete section.dataset.job;
+  $("run-title").textContent = "Run";
+  for (const id of ["run-status", "run-facts", "run-config", "loss-curve", "downloads"]) fill($(id));
+}
+
+// The results hidden and emptied; their late answers dropped.
+function hideResults() {
+  state.resultsCall += 1;
+  state.selected = null;
+  const section = $("results");
+  section.hidden = true;
+  delete section.dataset.job;
+  $("results-title").textContent = "Results";
+  for (const id of ["heatmaps", "matrix", "key-states"]) fill($(id));
+  releaseBlobs("results");
+}
+
+// The motion readout hidden and emptied; its late answers (the comparison's too) dropped.
+function hideMotion() {
+  state.motionCall += 1;
+  state.comparisonCall += 1;
+  state.motion = null;
+  const section = $("motion");
+  section.hidden = true;
+  delete section.dataset.demonstrator;
+  $("motion-title").textContent = "Motion readout";
+  $("motion-meta").textContent = "";
+  $("compare-label").textContent = "a, against b =";
+  for (const id of ["kinematics", "learned", "comparison", "compare-with"]) fill($(id));
+  for (const node of document.querySelectorAll("#demonstrators .dem.selected")) node.classList.remove("selected");
+  releaseBlobs("comparison");
+}
+
+// The quiet-standing panel hidden and emptied; its late answers dropped.
+function hideSway() {
+  state.swayCall += 1;
+  state.swayView += 1;
+  state.sway = null;
+  const section = $("sway");
+  section.hidden = true;
+  delete section.dataset.demonstrator;
+  $("sway-title").textContent = "Quiet standing";
+  $("sway-meta").textContent = "";
+  for (const id of ["sway-recording", "sway-measures", "sway-picture", "sway-groups"]) fill($(id));
+  releaseBlobs("sway");
+}
+
+// After the lab's data changed (a refresh, a delete): the motion and sway panels drawn again from what is
+// there now, or hidden where their demonstrator, or its recordings of that kind, are gone.
+function redrawPanels() {
+  const motion = state.demonstrators.get(state.motion);
+  if (state.motion !== null && motion && hasMovements(motion)) showMotion(motion.id);
+  else if (state.motion !== null) hideMotion();
+  const sway = state.demonstrators.get(state.sway);
+  if (state.sway !== null && sway && standingTrials(sway).length) showSway(sway.id, { trial: $("sway-recording").value });
+  else if (state.sway !== null) hideSway();
 }
 
 async function loadEverything() {
@@ -231,10 +332,10 @@ async function loadDemonstrators(generation) {
 function renderDemonstrators() {
   const box = $("demonstrators");
   if (state.demonstrators.size === 0) {
-    box.replaceChildren(el("p", { class: "empty" }, "No demonstrators yet."));
+    fill(box, el("p", { class: "empty" }, "No demonstrators yet."));
     return;
   }
-  box.replaceChildren(
+  fill(box,
     ...[...state.demonstrators.values()].map((d) =>
       el(
         "div",
@@ -264,10 +365,13 @@ function renderDemonstrators() {
               { class: "sub" },
               "Recordings: ",
               d.recordings
-                .map((r) => `${r.name} (${r.n_samples} samples, ${fmt(r.duration, 1)} s)`)
+                .map((r) => `${recordingName(r)} (${r.protocol === "standing" ? "standing, " : ""}${r.n_samples} samples, ${fmt(r.duration, 1)} s)`)
                 .join("; "),
               " ",
-              el("button", { class: "small quiet", "data-action": "motion", onclick: () => showMotion(d.id, { scroll: true }) }, "Motion readout"),
+              // The motion readout reads movements only: a demonstrator with standing trials alone has none.
+              hasMovements(d)
+                ? el("button", { class: "small quiet", "data-action": "motion", onclick: () => showMotion(d.id, { scroll: true }) }, "Motion readout")
+                : null,
               swayButton(d),
             )
           : el("div", { class: "sub" }, "no recordings"),
@@ -279,6 +383,25 @@ function renderDemonstrators() {
 function demonstratorName(id) {
   const d = state.demonstrators.get(id);
   return d ? d.name : id;
+}
+
+// A recording as the page names it: its name, else (an upload without one) its id.
+function recordingName(r) {
+  return r.name || r.id;
+}
+
+// Whether a recording holds instructed movements (cut into demonstrations, read out per direction), not a
+// quiet-standing trial: the recordings listing's `protocol`.
+function isMovement(r) {
+  return r.protocol === "movements";
+}
+
+function hasMovements(d) {
+  return d.recordings.some(isMovement);
+}
+
+function standingTrials(d) {
+  return d.recordings.filter((r) => r.protocol === "standing");
 }
 
 // ---- jobs ----------------------------------------------------------------------------------------
@@ -339,7 +462,7 @@ function renderJobRow(job) {
   const created = new Date(job.created_at);
   row.tr.dataset.status = job.status;
   row.tr.className = state.selected === job.id || state.run === job.id ? "selected" : "";
-  row.tr.replaceChildren(
+  fill(row.tr,
     el("td", {}, el("button", { class: "link id", title: "Open the run page", "data-action": "run", onclick: () => showRun(job.id, { scroll: true }) }, job.id), el("div", { class: "bar-text" }, created.toLocaleString())),
     el("td", {}, demonstratorName(job.demonstrator_id), el("div", { class: "bar-text" }, `${job.task_ids.length} tasks`)),
     el("td", {}, el("span", { class: `badge ${job.status}`, "data-role": "status" }, job.cancel_requested && !TERMINAL.has(job.status) ? `${job.status} (cancelling)` : job.status)),
@@ -539,26 +662,38 @@ async function showResults(id, { scroll = false } = {}) {
   section.dataset.job = id;
   $("results-title").textContent = `Results of ${id}`;
   if (scroll) section.scrollIntoView({ block: "start" });
-  $("heatmaps").replaceChildren(el("p", { class: "empty" }, "Loading…"));
-  $("matrix").replaceChildren();
-  $("key-states").replaceChildren();
+  fill($("heatmaps"), loading());
+  fill($("matrix"), loading());
+  fill($("key-states"), loading());
+  // The matrix (slow on a large MDP) comes on its own: the heatmaps are drawn as soon as the rewards come.
+  showMatrix(id, current);
   try {
-    const [rewards, matrix] = await Promise.all([
-      getJson(`/v1/jobs/${encodeURIComponent(id)}/rewards`),
-      getJson(`/v1/jobs/${encodeURIComponent(id)}/comparison-matrix`),
-    ]);
+    const rewards = await getJson(`/v1/jobs/${encodeURIComponent(id)}/rewards`);
     if (!current()) return;
     renderHeatmaps(rewards, current);
-    renderMatrix(matrix);
     // Side by side while the matrix is small; stacked (each full width, scrolling inside) once it is not.
-    document.querySelector(".results-grid").classList.toggle("stacked", matrix.labels.length > 6);
+    document.querySelector(".results-grid").classList.toggle("stacked", rewards.tasks.length + 1 > 6);
     const keyStates = await Promise.all(
       rewards.tasks.map((t) => getJson(`/v1/rewards/${encodeURIComponent(t.reward_id)}/key-states?top=5`)),
     );
     if (!current()) return;
-    renderKeyStates(rewards.tasks, keyStates);
+    renderKeyStates(rewards.tasks, keyStates, state.jobs.get(id));
   } catch (error) {
-    if (current()) reportError(error);
+    if (!current()) return;
+    for (const box of [$("heatmaps"), $("key-states")]) if (box.querySelector("[data-role='loading']")) fill(box, unavailable(error));
+    reportError(error);
+  }
+}
+
+// The job's comparison matrix into its box, with its own loading and error state.
+async function showMatrix(id, current) {
+  try {
+    const matrix = await getJson(`/v1/jobs/${encodeURIComponent(id)}/comparison-matrix`);
+    if (current()) renderMatrix(matrix);
+  } catch (error) {
+    if (!current()) return;
+    fill($("matrix"), unavailable(error));
+    if (error instanceof ApiError && error.status === 401) reportError(error);
   }
 }
 
@@ -601,9 +736,19 @@ function renderHeatmaps(rewards, current) {
       beside.length ? el("div", { class: "beside-row" }, ...beside) : null,
     );
     if (reward.links.png) {
+      // Opens full size on a click, or from the keyboard (Tab to it, then Enter or Space).
+      const open = () => openLightbox(picture.src, title, layout && layout.channels > 1 ? { reward, layout } : null);
       picture.classList.add("zoomable");
       picture.title = "Open full size";
-      picture.addEventListener("click", () => openLightbox(picture.src, title, layout && layout.channels > 1 ? { reward, layout } : null));
+      picture.tabIndex = 0;
+      picture.setAttribute("role", "button");
+      picture.setAttribute("aria-label", `Open the heatmap of ${title} full size`);
+      picture.addEventListener("click", open);
+      picture.addEventListener("keydown", (event) => {
+        if (event.key !== "Enter" && event.key !== " ") return;
+        event.preventDefault();
+        open();
+      });
       loadImage(picture, "results", current, reward.links.png);
     }
     for (const box of beside) {
@@ -611,7 +756,10 @@ function renderHeatmaps(rewards, current) {
     }
     return card;
   });
-  $("heatmaps").replaceChildren(...cards);
+  // A layout of many channels (a velocity grid's eight directions) is one wide picture of small panels:
+  // its cards take a wider column, fewer a row, so each panel stays legible.
+  $("heatmaps").classList.toggle("wide", Boolean(layout && layout.channels > 3));
+  fill($("heatmaps"), ...cards);
 }
 
 // Fetch a picture with the key and show it from a blob: URL, kept with the view's others until released.
@@ -650,39 +798,52 @@ function renderMatrix(m) {
       {},
       el("th", { class: "row", title: m.labels[i] }, m.labels[i]),
       row.map((r) =>
-        el("td", { class: "num", style: { background: correlationColour(r), color: Math.abs(r) > 0.55 ? "#fff" : "#1f2933" } }, fmt(r, 2)),
+        el("td", { class: "num", style: { background: correlationColour(r), color: Math.abs(r) > 0.55 ? "#fff" : "#1f2933" } }, fixed(r, 2)),
       ),
     ),
   );
-  $("matrix").replaceChildren(el("table", { class: "matrix" }, el("thead", {}, head), el("tbody", {}, rows)));
+  fill($("matrix"), el("table", { class: "matrix" }, el("thead", {}, head), el("tbody", {}, rows)));
 }
 
-function renderKeyStates(tasks, all) {
-  const tables = all.map((ks, i) =>
-    el(
+// Per task, the states where its reward departs most from the baseline; a task whose reward is the
+// baseline (λ 0, or every deviation set to zero) says so instead of listing states that depart by 0.
+function renderKeyStates(tasks, all, job) {
+  const heads = ["#", "state", "x, y", "reward", "baseline", "diff."];
+  const tables = all.map((ks, i) => {
+    const layout = layoutOfTask(ks.task_id);
+    const where = (s) => {
+      if (s.x === null || s.x === undefined) return "–";
+      const channel = s.channel === null || s.channel === undefined ? "" : channelName(layout, s.channel);
+      return `${s.x}, ${s.y}${channel ? ` (${channel})` : ""}`;
+    };
+    const same = ks.states.length > 0 && ks.states.every((s) => Math.abs(s.difference) < 1e-9);
+    const why = job && job.shrinkage === 0 ? " (λ 0: the fit kept no deviation from the baseline)" : "";
+    return el(
       "table",
       { "data-task": ks.task_id },
       el("caption", {}, tasks[i].task_name || ks.task_id),
-      el("thead", {}, el("tr", {}, ["#", "state", "x, y", "reward", "baseline", "diff."].map((h) => el("th", {}, h)))),
+      same ? null : el("thead", {}, el("tr", {}, heads.map((h) => el("th", {}, h)))),
       el(
         "tbody",
         {},
-        ks.states.map((s) =>
-          el(
-            "tr",
-            {},
-            el("td", {}, s.rank),
-            el("td", {}, s.state),
-            el("td", {}, s.x === null ? "–" : `${s.x}, ${s.y}${s.channel ? ` (${s.channel})` : ""}`),
-            el("td", { class: "num" }, fmt(s.reward, 2)),
-            el("td", { class: "num" }, fmt(s.baseline, 2)),
-            el("td", { class: `num ${s.difference >= 0 ? "pos" : "neg"}` }, fmt(s.difference, 2)),
-          ),
-        ),
+        same
+          ? el("tr", {}, el("td", { class: "empty", colspan: heads.length, "data-role": "equals-baseline" }, `This task's reward equals the baseline everywhere${why}.`))
+          : ks.states.map((s) =>
+              el(
+                "tr",
+                {},
+                el("td", {}, s.rank),
+                el("td", {}, s.state),
+                el("td", { "data-role": "where" }, where(s)),
+                el("td", { class: "num" }, fixed(s.reward, 2)),
+                el("td", { class: "num" }, fixed(s.baseline, 2)),
+                el("td", { class: `num ${s.difference >= 0 ? "pos" : "neg"}` }, fixed(s.difference, 2)),
+              ),
+            ),
       ),
-    ),
-  );
-  $("key-states").replaceChildren(...(tables.length ? tables : [el("p", { class: "empty" }, "No tasks.")]));
+    );
+  });
+  fill($("key-states"), ...(tables.length ? tables : [el("p", { class: "empty" }, "No tasks.")]));
 }
 
 // ---- motion readout ------------------------------------------------------------------------------
@@ -697,7 +858,7 @@ const DESCRIPTORS = [
 ];
 
 function loading() {
-  return el("p", { class: "empty" }, "Loading…");
+  return el("p", { class: "empty", "data-role": "loading" }, "Loading…");
 }
 
 function unavailable(error) {
@@ -709,14 +870,19 @@ function clearOfZero(v) {
   return v.low !== null && v.high !== null && (v.low > 0 || v.high < 0);
 }
 
-// A mean with its 95 % interval below it (none with a single repetition).
-function intervalCell(v, className = "") {
+// A mean with its 95 % interval below it (none with a single repetition), in its column's format.
+function intervalCell(v, className = "", format = fmt) {
   return el(
     "td",
     { class: `num ${className}` },
-    fmt(v.mean),
-    el("div", { class: "ci" }, v.low === null || v.high === null ? "" : `[${fmt(v.low)}, ${fmt(v.high)}]`),
+    format(v.mean),
+    el("div", { class: "ci" }, v.low === null || v.high === null ? "" : `[${format(v.low)}, ${format(v.high)}]`),
   );
+}
+
+// The format of each column of a table of intervals: {key: format}, from every mean and bound in the column.
+function intervalFormats(rows, keys) {
+  return Object.fromEntries(keys.map((key) => [key, columnFormat(rows.flatMap((row) => [row[key].mean, row[key].low, row[key].high]))]));
 }
 
 // "peak reach, path length, deviation: x, y units (as uploaded) · …": each unit once, with what it measures.
@@ -740,8 +906,8 @@ async function showMotion(id, { scroll = false } = {}) {
   section.dataset.demonstrator = id;
   $("motion-title").textContent = `Motion readout of ${demonstratorName(id)}`;
   $("motion-meta").textContent = "";
-  $("kinematics").replaceChildren(loading());
-  $("learned").replaceChildren();
+  fill($("kinematics"), loading());
+  fill($("learned"));
   renderPartners(id);
   if (scroll) section.scrollIntoView({ block: "start" });
   showComparison();
@@ -752,16 +918,17 @@ async function showMotion(id, { scroll = false } = {}) {
     $("motion-meta").textContent = `${summary.n_recordings} recording${summary.n_recordings === 1 ? "" : "s"}`;
     renderKinematics(summary);
     box = $("learned");
-    box.replaceChildren(loading());
+    fill(box, loading());
     await renderLearned(summary.learned, current);
   } catch (error) {
     if (!current()) return;
-    box.replaceChildren(unavailable(error));
+    fill(box, unavailable(error));
     reportError(error);
   }
 }
 
 function renderKinematics(summary) {
+  const formats = intervalFormats(summary.directions, DESCRIPTORS.map(([key]) => key));
   const table = el(
     "table",
     { class: "readout kinematics" },
@@ -774,11 +941,11 @@ function renderKinematics(summary) {
       "tbody",
       {},
       summary.directions.map((d) =>
-        el("tr", { "data-direction": d.direction }, el("th", { class: "row" }, d.direction), el("td", { class: "num" }, d.n_segments), DESCRIPTORS.map(([key]) => intervalCell(d[key]))),
+        el("tr", { "data-direction": d.direction }, el("th", { class: "row" }, d.direction), el("td", { class: "num" }, d.n_segments), DESCRIPTORS.map(([key]) => intervalCell(d[key], "", formats[key]))),
       ),
     ),
   );
-  $("kinematics").replaceChildren(table, el("p", { class: "units" }, unitsNote(summary.units)));
+  fill($("kinematics"), table, el("p", { class: "units" }, unitsNote(summary.units)));
 }
 
 // Table I of the paper, as the API reads it out: per direction task of the job, the states its
@@ -786,7 +953,7 @@ function renderKinematics(summary) {
 // (where the tasks carry a true reward) the task reward's r with it from the job's rewards listing.
 async function renderLearned(learned, current) {
   if (!learned) {
-    $("learned").replaceChildren(el("p", { class: "empty" }, "No job on this demonstrator has succeeded yet: the readout of its learned rewards shows here once one has."));
+    fill($("learned"), el("p", { class: "empty" }, "No job on this demonstrator has succeeded yet: the readout of its learned rewards shows here once one has."));
     return;
   }
   const rewards = await getJson(`/v1/jobs/${encodeURIComponent(learned.job_id)}/rewards`);
@@ -819,7 +986,7 @@ async function renderLearned(learned, current) {
         ),
       )
     : el("p", { class: "empty" }, "The job has no direction tasks on a velocity grid, so there is nothing to read out per direction.");
-  $("learned").replaceChildren(
+  fill($("learned"),
     el(
       "div",
       { class: "learned-job" },
@@ -858,13 +1025,14 @@ function renderAgreement(agreement) {
   );
 }
 
-// The other demonstrators with recordings, as the sessions to compare with; the choice is kept if it still fits.
+// The other demonstrators with recorded movements, as the sessions to compare with (standing trials alone
+// give nothing to compare per direction); the choice is kept if it still fits.
 function renderPartners(id) {
   $("compare-label").textContent = `${demonstratorName(id)} (a), against b =`;
   const select = $("compare-with");
   const previous = select.value;
-  const others = [...state.demonstrators.values()].filter((d) => d.id !== id && d.recordings.length > 0);
-  select.replaceChildren(...others.map((d) => el("option", { value: d.id }, d.name)));
+  const others = [...state.demonstrators.values()].filter((d) => d.id !== id && hasMovements(d));
+  fill(select, ...others.map((d) => el("option", { value: d.id }, d.name)));
   if (others.some((d) => d.id === previous)) select.value = previous;
   select.disabled = others.length === 0;
 }
@@ -877,26 +1045,27 @@ async function showComparison() {
   const b = $("compare-with").value;
   const box = $("comparison");
   if (!a || !b) {
-    box.replaceChildren(el("p", { class: "empty" }, "Upload recordings for another demonstrator (another session) to compare with."));
+    fill(box, el("p", { class: "empty" }, "Upload recorded movements for another demonstrator (another session) to compare with."));
     return;
   }
   box.dataset.b = b;
-  box.replaceChildren(loading());
+  fill(box, loading());
   const options = { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify({ a, b }) };
   try {
     const comparison = await getJson("/v1/motion-comparisons", options);
     if (!current()) return;
     const img = el("img", { alt: `Comparison figure of ${comparison.b.name} and ${comparison.a.name}` });
-    box.replaceChildren(el("figure", { class: "comparison-figure" }, img), renderDifferences(comparison));
+    fill(box, el("figure", { class: "comparison-figure" }, img), renderDifferences(comparison));
     loadImage(img, "comparison", current, comparison.links.png, options);
   } catch (error) {
     if (!current()) return;
-    box.replaceChildren(unavailable(error));
+    fill(box, unavailable(error));
     reportError(error);
   }
 }
 
 function renderDifferences(c) {
+  const formats = intervalFormats(c.directions, DESCRIPTORS.map(([key]) => `${key}_diff`));
   return el(
     "table",
     { class: "readout differences" },
@@ -917,7 +1086,7 @@ function renderDifferences(c) {
           el("td", { class: "num" }, `${d.n_a}, ${d.n_b}`),
           DESCRIPTORS.map(([key]) => {
             const v = d[`${key}_diff`];
-            return intervalCell(v, clearOfZero(v) ? (v.mean > 0 ? "pos clear" : "neg clear") : "");
+            return intervalCell(v, clearOfZero(v) ? (v.mean > 0 ? "pos clear" : "neg clear") : "", formats[`${key}_diff`]);
           }),
         ),
       ),
@@ -975,7 +1144,7 @@ function deliveryState(deliveries) {
 }
 
 function renderWebhooks(hooks) {
-  $("webhooks").replaceChildren(
+  fill($("webhooks"),
     ...hooks.map((h) =>
       el(
         "tr",
@@ -1031,7 +1200,7 @@ function showSecret(created) {
   const copy = el("button", { class: "small", type: "button", "data-action": "copy-secret", onclick: () => copySecret(value, copy) }, "Copy");
   const box = $("webhook-secret");
   box.dataset.webhook = created.id;
-  box.replaceChildren(
+  fill(box,
     el(
       "div",
       {},
@@ -1047,7 +1216,7 @@ function showSecret(created) {
 
 function hideSecret() {
   const box = $("webhook-secret");
-  box.replaceChildren();
+  fill(box);
   delete box.dataset.webhook;
   box.hidden = true;
 }
@@ -1088,11 +1257,12 @@ document.addEventListener("DOMContentLoaded", () => {
   });
   $("key-forget").addEventListener("click", forgetKey);
   $("refresh").addEventListener("click", () => {
+    const generation = state.generation;
     const selected = state.selected;
-    const motion = state.motion;
     loadEverything().then(() => {
+      if (generation !== state.generation) return;
       if (selected && state.jobs.has(selected)) showResults(selected);
-      if (motion && state.demonstrators.has(motion)) showMotion(motion);
+      redrawPanels();
     });
   });
   $("compare-with").addEventListener("change", showComparison);
@@ -1124,27 +1294,32 @@ function swayUnit(kind, units) {
 
 // A "Sway" button for a demonstrator with standing trials (none otherwise).
 function swayButton(d) {
-  if (!d.recordings.some((r) => r.protocol === "standing")) return null;
+  if (standingTrials(d).length === 0) return null;
   return el("button", { class: "small quiet", "data-action": "sway", onclick: () => showSway(d.id, { scroll: true }) }, "Sway");
 }
 
-// The sway panel of a demonstrator: one trial's measures and COP picture, and its trials compared by label.
-async function showSway(id, { scroll = false } = {}) {
+// The sway panel of a demonstrator: one trial's measures and COP picture (``trial``, else the newest), and its
+// trials compared by label.
+async function showSway(id, { scroll = false, trial = null } = {}) {
+  const view = ++state.swayView;
+  state.sway = id;
   const d = state.demonstrators.get(id);
-  const trials = d ? d.recordings.filter((r) => r.protocol === "standing") : [];
+  const trials = d ? standingTrials(d) : [];
   const section = $("sway");
   section.hidden = false;
   section.dataset.demonstrator = id;
   $("sway-title").textContent = `Quiet standing of ${demonstratorName(id)}`;
   $("sway-meta").textContent = `${trials.length} standing trial${trials.length === 1 ? "" : "s"}`;
   const select = $("sway-recording");
-  select.replaceChildren(
-    ...trials.map((r) => el("option", { value: r.id }, `${r.name || r.id}${labelsText(r.metadata)}`)),
+  fill(select,
+    ...trials.map((r) => el("option", { value: r.id, title: r.id }, `${recordingName(r)}${labelsText(r.metadata)}`)),
   );
+  const shown = trials.find((r) => r.id === trial) || trials[0];
+  if (shown) select.value = shown.id;
   select.onchange = () => showSwayTrial(select.value);
   if (scroll) section.scrollIntoView({ block: "start" });
-  if (trials.length) showSwayTrial(trials[0].id);
-  await showSwayGroups(id, trials);
+  if (shown) showSwayTrial(shown.id);
+  await showSwayGroups(id, trials, () => view === state.swayView);
 }
 
 function labelsText(metadata) {
@@ -1156,16 +1331,15 @@ async function showSwayTrial(recordingId) {
   const call = ++state.swayCall;
   const current = () => call === state.swayCall;
   releaseBlobs("sway");
-  $("sway-measures").replaceChildren(loading());
-  const img = el("img", { alt: "COP path with its 95 % ellipse", "data-recording": recordingId });
-  $("sway-picture").replaceChildren(img);
+  fill($("sway-measures"), loading());
+  fill($("sway-picture"), loading());
   try {
     const sway = await getJson(`/v1/recordings/${encodeURIComponent(recordingId)}/sway`);
     if (!current()) return;
     // A measure the API flags (coarse: `caveats`; null: `not_estimated`) carries a star and its reason.
     const swayNote = (key) => sway.caveats?.[key] ?? sway.not_estimated?.[key];
     const notes = [...new Set(SWAY_MEASURES.map(([key]) => swayNote(key)).filter(Boolean))];
-    $("sway-measures").replaceChildren(
+    fill($("sway-measures"),
       el(
         "table",
         { class: "readout sway-measures" },
@@ -1183,30 +1357,36 @@ async function showSwayTrial(recordingId) {
       notes.length ? el("p", { class: "caveat", "data-role": "sway-caveat" }, `* ${notes.join("; ")}`) : null,
       sway.caveats?.samples ? el("p", { class: "caveat", "data-role": "sway-samples-caveat" }, sway.caveats.samples) : null,
     );
+    // The picture goes in once it is being fetched: behind loadImage's placeholder, never a broken image.
+    const img = el("img", { alt: "COP path with its 95 % ellipse", "data-recording": recordingId });
+    fill($("sway-picture"), img);
     loadImage(img, "sway", current, `/v1/recordings/${encodeURIComponent(recordingId)}/sway?format=png`);
   } catch (error) {
     if (!current()) return;
-    $("sway-measures").replaceChildren(unavailable(error));
+    fill($("sway-measures"), unavailable(error));
+    fill($("sway-picture"));
+    if (error instanceof ApiError && error.status === 401) reportError(error);
   }
 }
 
 // Trials grouped by `vision` when they carry it, else by their first label; the Romberg quotient for vision.
-async function showSwayGroups(id, trials) {
+async function showSwayGroups(id, trials, current) {
   const box = $("sway-groups");
   const labels = [...new Set(trials.flatMap((r) => Object.keys(r.metadata || {})))];
   const by = labels.includes("vision") ? "vision" : labels[0];
   if (!by) {
-    box.replaceChildren(el("p", { class: "empty" }, "Label the trials (metadata such as {\"vision\": \"closed\"}) to compare conditions."));
+    fill(box, el("p", { class: "empty" }, "Label the trials (metadata such as {\"vision\": \"closed\"}) to compare conditions."));
     return;
   }
-  box.replaceChildren(loading());
+  fill(box, loading());
   try {
     const summary = await getJson(`/v1/demonstrators/${encodeURIComponent(id)}/sway-summary?by=${encodeURIComponent(by)}`);
+    if (!current()) return;
     const shown = ["area95", "mean_velocity", "mean_frequency"];
     const cell = (v) => el("td", { class: "num" }, fmt(v.value), el("div", { class: "ci" }, v.low === null || v.high === null ? "" : `[${fmt(v.low)}, ${fmt(v.high)}]`));
     const rows = summary.groups.map((g) => el("tr", { "data-group": g.label }, el("th", {}, `${by}: ${g.label} (${g.n})`), ...shown.map((m) => cell(g.measures[m]))));
     if (summary.romberg) rows.push(el("tr", { "data-group": "romberg" }, el("th", {}, "Romberg quotient (closed / open)"), ...shown.map((m) => cell(summary.romberg[m]))));
-    box.replaceChildren(
+    fill(box,
       el(
         "table",
         { class: "readout sway-groups" },
@@ -1215,7 +1395,7 @@ async function showSwayGroups(id, trials) {
       ),
     );
   } catch (error) {
-    box.replaceChildren(unavailable(error));
+    if (current()) fill(box, unavailable(error));
   }
 }
 
@@ -1266,7 +1446,7 @@ function turnPage(how) {
 function renderDemonstratorFilter() {
   const select = $("filter-demonstrator");
   const previous = select.value;
-  select.replaceChildren(
+  fill(select,
     el("option", { value: "" }, "any"),
     ...[...state.demonstrators.values()].map((d) => el("option", { value: d.id }, d.name)),
   );
@@ -1323,8 +1503,8 @@ async function showRun(id, { scroll = false } = {}) {
   const section = $("run");
   section.hidden = false;
   section.dataset.job = id;
-  $("loss-curve").replaceChildren(loading());
-  $("downloads").replaceChildren();
+  fill($("loss-curve"), loading());
+  fill($("downloads"));
   if (scroll) section.scrollIntoView({ block: "start" });
   try {
     const [job, history] = await Promise.all([
@@ -1366,10 +1546,10 @@ async function loadStepHistory(id) {
 // Redraw the run page of ``job``; the downloads are read again only when the job has just succeeded.
 function renderRun(job, previous) {
   $("run-title").textContent = `Run ${job.id}`;
-  $("run-status").replaceChildren(el("span", { class: `badge ${job.status}`, "data-role": "status" }, job.status));
+  fill($("run-status"), el("span", { class: `badge ${job.status}`, "data-role": "status" }, job.status));
   const fact = (name, value, attrs = {}) => [el("dt", {}, name), el("dd", attrs, value)];
   const p = job.progress;
-  $("run-facts").replaceChildren(
+  fill($("run-facts"),
     ...fact("demonstrator", demonstratorName(job.demonstrator_id)),
     ...fact("tasks", job.task_ids.map((t) => taskName(job.demonstrator_id, t)).join(", ")),
     ...fact("steps", p ? `${p.step} of ${p.max_steps}` : "–"),
@@ -1391,7 +1571,7 @@ function renderRun(job, previous) {
   }
   const succeeded = job.status === "succeeded";
   if (succeeded && (!previous || previous.status !== "succeeded" || !$("downloads").firstChild)) renderDownloads(job);
-  if (!succeeded) $("downloads").replaceChildren(el("p", { class: "empty" }, downloadsLater(job)));
+  if (!succeeded) fill($("downloads"), el("p", { class: "empty" }, downloadsLater(job)));
 }
 
 const SHRINKAGE_TITLE = "Each task reward is the baseline + λ·S_q(the task's learned reward − the baseline), S_q setting the smallest share q of the deviations to zero; λ and q chosen by held-out likelihood (config shrink_deviations)";
@@ -1412,7 +1592,8 @@ function sparsityText(sparsity) {
 
 function downloadsLater(job) {
   const inputs = "the MDP arrays and demonstrations are listed below once it has succeeded";
-  return TERMINAL.has(job.status) ? `The job ${job.status}: it has no learned rewards.` : `Learned rewards, ${inputs}.`;
+  const ended = { failed: "failed", cancelled: "was cancelled" }[job.status];
+  return ended ? `The job ${ended}: it has no learned rewards.` : `Learned rewards, ${inputs}.`;
 }
 
 function taskName(demonstratorId, taskId) {
@@ -1424,7 +1605,7 @@ function taskName(demonstratorId, taskId) {
 function renderRunConfig(config) {
   const props = state.configSchema || {};
   const differences = configDifferences(config);
-  $("run-config").replaceChildren(
+  fill($("run-config"),
     differences.length
       ? el(
           "table",
@@ -1497,7 +1678,7 @@ function drawLossCurve(box, history) {
   const points = history.points;
   $("loss-curve-source").textContent = CURVE_SOURCES[history.source] || CURVE_SOURCES.samples;
   if (points.length === 0) {
-    box.replaceChildren(el("p", { class: "empty" }, "No progress yet: the curve starts with the first step."));
+    fill(box, el("p", { class: "empty" }, "No progress yet: the curve starts with the first step."));
     return;
   }
   const shown = SERIES.filter(([key]) => points.some((p) => Number.isFinite(p[key])));
@@ -1548,7 +1729,7 @@ function drawLossCurve(box, history) {
     { class: "legend" },
     shown.map(([key, label, colour]) => el("span", { "data-series": key }, el("i", { style: { background: colour } }), `${label} ${fmt(last[key])}`)),
   );
-  box.replaceChildren(plot, legend);
+  fill(box, plot, legend);
 }
 
 // The SVG path of one series. Where points are denser than half a pixel (a curve of every step, up to
@@ -1625,15 +1806,15 @@ function rewardDownloads(reward) {
 async function renderDownloads(job) {
   const call = state.runCall;
   const box = $("downloads");
-  box.replaceChildren(loading());
+  fill(box, loading());
   try {
     const rewards = await getJson(`/v1/jobs/${encodeURIComponent(job.id)}/rewards`);
     if (call !== state.runCall) return;
     const d = state.demonstrators.get(job.demonstrator_id);
     const tasks = d ? d.tasks.filter((t) => job.task_ids.includes(t.id)) : [];
     const mdpIds = [...new Set(tasks.map((t) => t.mdp_id).filter(Boolean))];
-    const recordings = d ? d.recordings.filter((r) => r.protocol !== "standing") : []; // standing trials are not cut into demonstrations
-    box.replaceChildren(
+    const recordings = d ? d.recordings.filter(isMovement) : []; // standing trials are not cut into demonstrations
+    fill(box,
       el(
         "table",
         { class: "readout downloads-table" },
@@ -1648,7 +1829,7 @@ async function renderDownloads(job) {
             el(
               "tr",
               { "data-recording": r.id },
-              el("th", { class: "row" }, `recording ${r.name || r.id}`),
+              el("th", { class: "row" }, `recording ${recordingName(r)}`),
               el("td", {}, "demonstrations: ", downloadLink(`/v1/recordings/${encodeURIComponent(r.id)}/demonstrations`, "json"), downloadLink(`/v1/recordings/${encodeURIComponent(r.id)}/demonstrations?format=csv`, "csv")),
             ),
           ),
@@ -1656,7 +1837,7 @@ async function renderDownloads(job) {
       ),
     );
   } catch (error) {
-    if (call === state.runCall) box.replaceChildren(unavailable(error));
+    if (call === state.runCall) fill(box, unavailable(error));
   }
 }
 
@@ -1664,21 +1845,47 @@ async function renderDownloads(job) {
 
 // The picture at its natural size; with ``channels`` ({reward, layout} of a layout with several channels)
 // also a button per channel that draws that channel alone, filling the screen.
+// Focus moves to its Close button; Escape or Close shut it and return focus to where it was.
 function openLightbox(src, title, channels) {
   if (!src) return;
   showWholePicture();
-  renderChannelButtons(channels);
+  renderChannelButtons(channels, title);
   $("lightbox-img").src = src;
   $("lightbox-img").alt = `heatmap of ${title}, full size`;
   $("lightbox-title").textContent = title;
   $("lightbox-open").href = src;
+  if ($("lightbox").hidden) state.lightboxOpener = document.activeElement;
   $("lightbox").hidden = false;
+  $("lightbox-close").focus();
 }
 
 function closeLightbox() {
+  const wasOpen = !$("lightbox").hidden;
   $("lightbox").hidden = true;
   state.lightboxCall += 1;
   $("lightbox-img").removeAttribute("src");
+  $("lightbox-title").textContent = "";
+  $("lightbox-open").removeAttribute("href");
+  fill($("lightbox-channels"));
+  fill($("lightbox-channel-title"));
+  const opener = state.lightboxOpener;
+  state.lightboxOpener = null;
+  if (wasOpen && opener && opener.isConnected && typeof opener.focus === "function") opener.focus();
+}
+
+// Tab and Shift+Tab stay inside the open lightbox (it covers the page).
+function keepFocusInLightbox(event) {
+  const focusable = [...$("lightbox").querySelectorAll("button, a[href]")].filter((node) => !node.disabled && node.offsetParent !== null);
+  if (!focusable.length) return;
+  const first = focusable[0];
+  const last = focusable[focusable.length - 1];
+  if (event.shiftKey && (document.activeElement === first || !$("lightbox").contains(document.activeElement))) {
+    event.preventDefault();
+    last.focus();
+  } else if (!event.shiftKey && (document.activeElement === last || !$("lightbox").contains(document.activeElement))) {
+    event.preventDefault();
+    first.focus();
+  }
 }
 
 // ---- MDPs ----------------------------------------------------------------------------------------
@@ -1687,7 +1894,7 @@ async function loadMdps(generation) {
   const mdps = await getAll("/v1/mdps");
   if (generation !== state.generation) return;
   state.mdps = mdps;
-  $("mdps").replaceChildren(
+  fill($("mdps"),
     ...(mdps.length
       ? mdps.map((m) =>
           el(
@@ -1717,7 +1924,7 @@ function renderSubmitForm() {
   const select = $("submit-demonstrator");
   const previous = select.value;
   const withTasks = [...state.demonstrators.values()].filter((d) => d.tasks.length > 0);
-  select.replaceChildren(...withTasks.map((d) => el("option", { value: d.id }, d.name)));
+  fill(select, ...withTasks.map((d) => el("option", { value: d.id }, d.name)));
   if (withTasks.some((d) => d.id === previous)) select.value = previous;
   $("submit-job").disabled = withTasks.length === 0;
   renderSubmitTasks();
@@ -1726,7 +1933,7 @@ function renderSubmitForm() {
 
 function renderSubmitTasks() {
   const d = state.demonstrators.get($("submit-demonstrator").value);
-  $("submit-tasks").replaceChildren(
+  fill($("submit-tasks"),
     el("legend", {}, "Tasks"),
     ...(d ? d.tasks : []).map((t) => el("label", {}, el("input", { type: "checkbox", name: "task", value: t.id, checked: true }), ` ${t.name}`)),
   );
@@ -1736,13 +1943,20 @@ function renderSubmitTasks() {
 function renderConfigFields() {
   const props = state.configSchema;
   if (!props) return;
-  $("submit-config").replaceChildren(
+  fill($("submit-config"),
     ...Object.entries(props).map(([name, schema]) => {
       const shown = JSON.stringify(defaultOf(schema));
       const range = settingRange(schema);
-      const input = schema.enum
-        ? el("select", { name }, el("option", { value: "" }, `${schema.default} (default)`), schema.enum.filter((v) => v !== schema.default).map((v) => el("option", { value: JSON.stringify(v) }, v)))
-        : el("input", { name, placeholder: shown, inputmode: schema.type === "number" || schema.type === "integer" ? "decimal" : undefined, spellcheck: "false" });
+      // A choice (an enum, a yes/no setting) is a list to pick from: the default first, then the others.
+      const choices = schema.enum || (schema.type === "boolean" ? [true, false] : null);
+      const input = choices
+        ? el("select", { name }, el("option", { value: "" }, `${schema.default} (default)`), choices.filter((v) => v !== schema.default).map((v) => el("option", { value: JSON.stringify(v) }, String(v))))
+        : el("input", {
+            name,
+            placeholder: isList(schema) && Array.isArray(defaultOf(schema)) ? defaultOf(schema).join(", ") : shown,
+            inputmode: schema.type === "number" || schema.type === "integer" ? "decimal" : undefined,
+            spellcheck: "false",
+          });
       return el("label", { class: "config-field", title: `${schema.description || ""}${range ? ` (${range})` : ""}`, "data-setting": name }, el("span", {}, name, range ? el("small", {}, ` ${range}`) : null), input);
     }),
   );
@@ -1754,17 +1968,30 @@ function settingRange(schema) {
   return [bound("minimum", "≥"), bound("exclusiveMinimum", ">"), bound("maximum", "≤"), bound("exclusiveMaximum", "<")].filter(Boolean).join(", ");
 }
 
-// The settings typed in: JSON where it parses (numbers, lists, null), else the text as a string.
+// Whether a setting takes a list (of integers, as `hidden`), maybe or null.
+function isList(schema) {
+  return schema.type === "array" || (schema.anyOf || []).some((s) => s.type === "array");
+}
+
+// The settings typed in: JSON where it parses (numbers, lists, null), else the text as a string; a list
+// setting also takes numbers separated by commas or spaces ("8, 8" or "8": [8, 8] or [8]).
 function typedConfig() {
+  const props = state.configSchema || {};
   const config = {};
   for (const field of $("submit-config").querySelectorAll("input, select")) {
     const text = field.value.trim();
     if (!text) continue;
+    let value;
     try {
-      config[field.name] = JSON.parse(text);
+      value = JSON.parse(text);
     } catch (_) {
-      config[field.name] = text;
+      value = text;
     }
+    if (props[field.name] && isList(props[field.name]) && !Array.isArray(value) && value !== null) {
+      const items = String(text).replace(/^\[|\]$/g, "").split(/[\s,;]+/).filter(Boolean);
+      if (items.length && items.every((item) => /^[-+]?\d+(\.\d+)?$/.test(item))) value = items.map(Number);
+    }
+    config[field.name] = value;
   }
   return config;
 }
@@ -1818,16 +2045,15 @@ async function deleteResource(kind, id, what) {
     await api(DELETE_PATHS[kind] + encodeURIComponent(id), { method: "DELETE" });
     if (generation !== state.generation) return;
     // A demonstrator or task takes its jobs with it: the run page and results shown may be gone.
-    if (state.run === id || kind === "demonstrator" || kind === "task") {
-      state.run = null;
-      $("run").hidden = true;
-    }
-    if (state.selected === id || kind === "demonstrator" || kind === "task") {
-      state.selected = null;
-      $("results").hidden = true;
-    }
+    if (state.run === id || kind === "demonstrator" || kind === "task") hideRun();
+    if (state.selected === id || kind === "demonstrator" || kind === "task") hideResults();
+    // The panels of a deleted demonstrator go at once; the others are drawn again below from what is left.
+    if (kind === "demonstrator" && state.motion === id) hideMotion();
+    if (kind === "demonstrator" && state.sway === id) hideSway();
     await loadDemonstrators(generation);
     await Promise.all([loadJobs(generation), loadMdps(generation)]);
+    if (generation !== state.generation) return;
+    redrawPanels(); // a motion readout may have lost its job, its partner or its recordings
     showMessage(`Deleted ${what}.`, "info");
   } catch (error) {
     if (generation === state.generation) reportError(error);
@@ -1846,7 +2072,9 @@ document.addEventListener("DOMContentLoaded", () => {
     if (event.target === $("lightbox") || event.target.classList.contains("lightbox-body")) closeLightbox();
   });
   document.addEventListener("keydown", (event) => {
-    if (event.key === "Escape" && !$("lightbox").hidden) closeLightbox();
+    if ($("lightbox").hidden) return;
+    if (event.key === "Escape") closeLightbox();
+    else if (event.key === "Tab") keepFocusInLightbox(event);
   });
 });
 
@@ -1871,40 +2099,55 @@ function layoutOfTask(taskId) {
   return null;
 }
 
-function renderChannelButtons(channels) {
+// The name of a layout's channel as the server's heatmaps title their panels: the velocity grid's directions
+// when there are eight channels, "channel k" otherwise; "" for a layout of one channel.
+const DIRECTION_NAMES = ["right", "forward right", "forward", "forward left", "left", "backward left", "backward", "backward right"];
+
+function channelName(layout, channel) {
+  if (layout && layout.channels === 1) return "";
+  if (layout && layout.channels === DIRECTION_NAMES.length) return DIRECTION_NAMES[channel] ?? `channel ${channel}`;
+  return `channel ${channel}`;
+}
+
+function renderChannelButtons(channels, title) {
   const bar = $("lightbox-channels");
   bar.hidden = !channels;
-  if (!channels) return bar.replaceChildren();
+  if (!channels) return fill(bar);
   const pick = (button, draw) => {
-    for (const b of bar.querySelectorAll("button")) b.classList.toggle("quiet", b !== button);
-    draw();
+    for (const b of bar.querySelectorAll("button")) {
+      b.classList.toggle("quiet", b !== button);
+      b.setAttribute("aria-pressed", String(b === button));
+    }
+    Promise.resolve(draw()).catch(reportError);
   };
-  const all = el("button", { type: "button", class: "small", "data-channel": "all" }, "all channels");
+  const all = el("button", { type: "button", class: "small", "data-channel": "all", "aria-pressed": "true" }, "all channels");
   all.addEventListener("click", () => pick(all, showWholePicture));
   const each = Array.from({ length: channels.layout.channels }, (_, c) => {
-    const button = el("button", { type: "button", class: "small quiet", "data-channel": c }, `channel ${c}`);
-    button.addEventListener("click", () => pick(button, () => drawChannel(channels.reward, channels.layout, c)));
+    const name = channelName(channels.layout, c);
+    const caption = `${title} — ${channels.layout.channels === DIRECTION_NAMES.length ? `moving ${name}` : name}`;
+    const button = el("button", { type: "button", class: "small quiet", "data-channel": c, "aria-pressed": "false" }, name);
+    button.addEventListener("click", () => pick(button, () => drawChannel(channels.reward, channels.layout, c, caption)));
     return button;
   });
-  bar.replaceChildren(all, ...each);
+  fill(bar, all, ...each);
 }
 
 function showWholePicture() {
   state.lightboxCall += 1;
-  $("lightbox-canvas").hidden = true;
+  $("lightbox-channel").hidden = true;
   $("lightbox-img").hidden = false;
 }
 
 // Channel ``channel`` of the reward (state = (channel·height + y)·width + x, y up), coloured on the range of
 // all channels so that channels compare, at the largest whole number of pixels per cell the window allows.
-async function drawChannel(reward, layout, channel) {
+async function drawChannel(reward, layout, channel, caption) {
   const call = ++state.lightboxCall;
   const { values } = await getJson(`/v1/rewards/${encodeURIComponent(reward.reward_id)}?format=json`);
   if (call !== state.lightboxCall) return;
   const { width, height } = layout;
   const lo = Math.min(...values);
   const hi = Math.max(...values);
-  const cell = Math.max(4, Math.floor(Math.min((innerWidth - 40) / width, (innerHeight - 90) / height)));
+  const cell = Math.max(4, Math.floor(Math.min((innerWidth - 40) / width, (innerHeight - 120) / height)));
   const canvas = $("lightbox-canvas");
   canvas.width = width * cell;
   canvas.height = height * cell;
@@ -1917,6 +2160,8 @@ async function drawChannel(reward, layout, channel) {
       context.fillRect(x * cell, (height - 1 - y) * cell, cell, cell);
     }
   }
+  canvas.setAttribute("aria-label", `${caption}, reward ${fmt(lo)} (purple) to ${fmt(hi)} (yellow)`);
+  fill($("lightbox-channel-title"), el("strong", {}, caption), ` · reward from ${fmt(lo)} (purple) to ${fmt(hi)} (yellow), on the range of all channels`);
   $("lightbox-img").hidden = true;
-  canvas.hidden = false;
+  $("lightbox-channel").hidden = false;
 }
