@@ -184,7 +184,8 @@ def test_only_the_request_holding_a_claim_renews_records_or_releases_it(
 
 
 def test_a_retry_sent_as_soon_as_the_answer_arrives_is_replayed(app: FastAPI, auth: dict[str, str]) -> None:
-    with serving(app) as url, httpx.Client(base_url=url, headers=auth) as http:
+    # A generous timeout: the race is the point, not the latency of 400 writes on a busy machine.
+    with serving(app) as url, httpx.Client(base_url=url, headers=auth, timeout=60) as http:
         statuses = []
         for attempt in range(200):
             headers = {"Idempotency-Key": f"race-{attempt}"}
