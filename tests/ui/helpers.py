@@ -4,13 +4,12 @@ API, and opening the page with a key."""
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 import time
 from typing import TYPE_CHECKING, Any
 
 import httpx
 
+from benchmarks.reliability import create_key
 from tests.served import REPO, Served
 
 if TYPE_CHECKING:
@@ -53,15 +52,7 @@ def another_labs_key(served: Served, lab: str) -> str:
     """A key of a new lab on the served API (`metairl keys create` on the server's data folder)."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("METAIRL_")}
     env["METAIRL_DATA_DIR"] = str(served.log.parent / "var")
-    made = subprocess.run(
-        [sys.executable, "-m", "metairl_cli", "keys", "create", "--lab", lab],
-        cwd=REPO,
-        env=env,
-        capture_output=True,
-        text=True,
-        check=True,
-    )
-    return made.stdout.strip().splitlines()[-1]
+    return create_key(env, lab)
 
 
 def open_dashboard(browser: Browser, url: str, key: str) -> tuple[Page, list[str]]:

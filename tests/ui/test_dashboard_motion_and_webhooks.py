@@ -184,19 +184,27 @@ def test_dashboard_reads_out_a_sessions_motion_beside_its_learned_rewards_and_co
     assert errors == []
 
 
-def test_dashboard_says_when_recordings_came_after_the_job_its_learned_readout_shows(
-    served: Served, browser: Browser
-) -> None:
+def learned_readout(
+    served: Served, browser: Browser, name: str
+) -> tuple[httpx.Client, str, str, Page, list[str]]:
+    """A demonstrator `name` with one recording and a succeeded quick job, its motion readout open on the
+    dashboard showing that job: the client, the demonstrator's and job's ids, the page and its errors."""
     http = httpx.Client(base_url=served.url, headers={"Authorization": f"Bearer {served.key}"}, timeout=60)
-    dem_id = recorded(http, "P3 unstimulated", {"forward": 0.1})
+    dem_id = recorded(http, name, {"forward": 0.1})
     job_id = submit(http, dem_id, QUICK)
     wait_until_succeeded(http, job_id)
-
     page, errors = open_dashboard(browser, served.url, served.key)
-    page.click(f"[data-demonstrator='{dem_id}'] [data-action='motion']")
+    page.click(f".dem[data-demonstrator='{dem_id}'] [data-action='motion']")
     page.wait_for_selector(
         f"#motion[data-demonstrator='{dem_id}'] #learned .learned-job:has-text('{job_id}')"
     )
+    return http, dem_id, job_id, page, errors
+
+
+def test_dashboard_says_when_recordings_came_after_the_job_its_learned_readout_shows(
+    served: Served, browser: Browser
+) -> None:
+    http, dem_id, job_id, page, errors = learned_readout(served, browser, "P3 unstimulated")
     assert page.locator("#learned [data-role='stale']").count() == 0  # the fit saw every recording
 
     later = record(http, dem_id, "P3 unstimulated, again", {"forward": 0.1}, seed=1)
@@ -244,12 +252,7 @@ def test_motion_readout_is_offered_for_and_compared_with_recorded_movements_only
 def test_learned_readout_prints_nothing_but_its_parts_under_the_verdict(
     served: Served, browser: Browser
 ) -> None:
-    http = httpx.Client(base_url=served.url, headers={"Authorization": f"Bearer {served.key}"}, timeout=60)
-    dem_id = recorded(http, "P6 unstimulated", {"forward": 0.1})
-    job_id = submit(http, dem_id, QUICK)
-    wait_until_succeeded(http, job_id)
-    page, errors = open_dashboard(browser, served.url, served.key)
-    page.click(f".dem[data-demonstrator='{dem_id}'] [data-action='motion']")
+    _, dem_id, _, page, errors = learned_readout(served, browser, "P6 unstimulated")
     page.wait_for_selector(f"#motion[data-demonstrator='{dem_id}'] #learned [data-role='agreement']")
     assert page.locator("#learned [data-role='stale']").count() == 0  # nothing came after the job
     texts = page.locator("#learned").evaluate("box => [...box.childNodes].map(n => n.textContent)")

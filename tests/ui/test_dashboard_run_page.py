@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 import httpx
 import pytest
 
+from metairl_engine.grids import DIRECTION_NAMES
 from scripts.screenshots import (
     DENSE_PROGRESS,
     FAST,
@@ -499,19 +500,6 @@ def heatmaps_loaded(page: Page, count: int) -> None:
     )
 
 
-DIRECTIONS = [
-    "right",
-    "forward right",
-    "forward",
-    "forward left",
-    "left",
-    "backward left",
-    "backward",
-    "backward right",
-]
-"""The velocity grid's channels, as the server's heatmaps title their panels."""
-
-
 def test_the_lightbox_names_a_velocity_grids_channels_by_direction_and_titles_the_one_drawn(
     demo: Demo, browser: Browser, recorded_job: str
 ) -> None:
@@ -523,7 +511,7 @@ def test_the_lightbox_names_a_velocity_grids_channels_by_direction_and_titles_th
     assert shown is not None and shown["width"] >= 560, shown
     page.locator("#results").screenshot(path=ARTIFACTS / "results-velocity-grid.png")
     page.locator("#heatmaps img[data-reward]").nth(1).click()
-    assert page.locator("#lightbox-channels button").all_inner_texts() == ["all channels", *DIRECTIONS]
+    assert page.locator("#lightbox-channels button").all_inner_texts() == ["all channels", *DIRECTION_NAMES]
     # The bar over the picture is opaque: the page's heading never shows through it.
     background = page.locator(".lightbox-bar").evaluate("bar => getComputedStyle(bar).backgroundColor")
     assert background.startswith("rgb("), background
@@ -620,7 +608,7 @@ def test_key_states_name_each_channel_and_say_when_a_task_reward_is_the_baseline
     table = page.locator(f"#key-states table[data-task='{first['task_id']}']")
     table.wait_for()
     where = table.locator("[data-role='where']").all_inner_texts()
-    expected = [f"{s['x']}, {s['y']} ({DIRECTIONS[s['channel']]})" for s in first["states"]]
+    expected = [f"{s['x']}, {s['y']} ({DIRECTION_NAMES[s['channel']]})" for s in first["states"]]
     assert where == expected
     same = page.locator(f"#key-states table[data-task='{second['task_id']}']")
     assert (
