@@ -17,7 +17,7 @@ from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session
 
 from service.settings import Settings, get_settings
-from service.store.db import database_name, database_state, make_engine, migrate
+from service.store.db import NewerSchema, database_name, database_state, make_engine, migrate
 from service.store.keys import KeyInfo, add_key, list_keys, revoke_key
 
 
@@ -29,7 +29,8 @@ def create_key(session: Session, lab_name: str) -> str:
 
 
 def create_key_command(*, lab: str) -> int:
-    """Migrate the configured database, create the key and print it alone on the last line; exit code."""
+    """Migrate the configured database, create the key and print it alone on the last line; exit code (1 for a
+    database that newer code migrated)."""
     if not lab.strip():
         print("error: --lab must not be empty", file=sys.stderr)
         return 2
@@ -38,6 +39,9 @@ def create_key_command(*, lab: str) -> int:
         migrate(engine)
         with Session(engine) as session:
             key = create_key(session, lab.strip())
+    except NewerSchema as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
     finally:
         engine.dispose()
     print(f"Created an API key for lab {lab.strip()!r}. Send it as 'Authorization: Bearer <key>':")

@@ -28,7 +28,7 @@ from sqlalchemy.orm import Session
 from metairl_cli.keys import create_key
 from service.jobs.broker import broker_url
 from service.settings import Settings, get_settings
-from service.store.db import make_engine, migrate
+from service.store.db import NewerSchema, make_engine, migrate
 from service.store.keys import key_is_valid
 
 LOCAL_LAB = "local"
@@ -87,8 +87,9 @@ def worker_command(python: str) -> list[str]:
 def serve(*, host: str, port: int, workers: int | None = None, access_log: bool = False) -> int:
     """Run API (`workers` processes, default one per core) and one worker until SIGTERM/SIGINT (exit 0) or
     until the API dies (exit 1); a worker that dies is restarted with backoff while the API stays up; exit 2
-    at once, before anything is printed or created, if the port cannot be listened on. The URL and the key
-    are printed last, once the API answers and the worker said it is ready."""
+    at once, before anything is printed or created, if the port cannot be listened on, and exit 1 on a
+    database that newer code migrated. The URL and the key are printed last, once the API answers and the
+    worker said it is ready."""
     problem = port_problem(host, port)
     if problem is not None:
         print(f"metairl: {problem}", file=sys.stderr, flush=True)
@@ -100,6 +101,9 @@ def serve(*, host: str, port: int, workers: int | None = None, access_log: bool 
         migrate(engine)
         with Session(engine) as session:
             key = local_key(session, settings.data_dir)
+    except NewerSchema as exc:
+        print(f"metairl: {exc}", file=sys.stderr, flush=True)
+        return 1
     finally:
         engine.dispose()
 

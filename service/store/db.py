@@ -130,16 +130,28 @@ def alembic_config(connection: Connection) -> Config:
     return config
 
 
+class NewerSchema(RuntimeError):
+    """The database is stamped with a migration this code does not know: newer code migrated it, and this
+    code must neither downgrade it nor write to a schema it does not know."""
+
+
 def migrate(engine: Engine) -> None:
-    """Upgrade the database to the newest revision; safe when several processes (or threads) start at once.
+    """Upgrade the database to the newest revision; safe when several processes (or threads) start at once;
+    `NewerSchema` (naming the database) for one that newer code migrated.
 
     A database already at the newest revision is left alone without importing Alembic (an API process then
     never loads it: about 30 MB per process). The check runs under the migration lock too: on a new SQLite
     file, connections opened at once race to switch it to WAL, and one of them can be refused as locked.
     """
     with _THREAD_LOCK, _migration_lock(engine):
-        if is_current(engine):
+        state = schema_state(engine)
+        if state == "current":
             return
+        if state == "ahead":
+            raise NewerSchema(
+                f"the database at {url_name(engine.url)} was migrated by a newer metairl; "
+                "run this command with that version"
+            )
         from alembic import command
 
         with engine.connect() as connection:
@@ -218,7 +230,11 @@ def database_state(settings: Settings) -> SchemaState:
 
 def database_name(settings: Settings) -> str:
     """The configured database for a message: a SQLite file's path, else the URL without its password."""
-    url = make_url(settings.resolved_database_url)
+    return url_name(make_url(settings.resolved_database_url))
+
+
+def url_name(url: URL) -> str:
+    """A database URL for a message: a SQLite file's path, else the URL without its password."""
     if url.get_backend_name() == "sqlite" and url.database:
         return str(Path(url.database).resolve()) if url.database != ":memory:" else ":memory:"
     return url.render_as_string(hide_password=True)

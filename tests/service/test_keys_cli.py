@@ -11,12 +11,12 @@ from pathlib import Path
 
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
-from sqlalchemy import inspect
+from sqlalchemy import inspect, text
 
 from metairl_cli.keys import create_key
 from metairl_cli.serve import LOCAL_KEY_FILE, local_key
 from service.settings import Settings
-from service.store.db import database_state, make_engine
+from service.store.db import database_state, make_engine, migrate
 from service.store.keys import add_key, list_keys, revoke_key, split_key
 
 REPO = Path(__file__).resolve().parents[2]
@@ -119,6 +119,23 @@ def test_list_refuses_a_database_without_the_schema_and_leaves_it_so(empty_datab
     engine = make_engine(Settings(database_url=empty_database_url))
     assert database_state(Settings(database_url=empty_database_url)) == "empty"
     assert inspect(engine).get_table_names() == []
+    engine.dispose()
+
+
+def test_create_and_serve_refuse_a_database_migrated_by_newer_code_in_one_line(tmp_path: Path) -> None:
+    """A schema this code does not know is named on stderr, not as Alembic's traceback, and left unchanged."""
+    settings = Settings(data_dir=tmp_path)
+    engine = make_engine(settings)
+    migrate(engine)
+    with engine.begin() as connection:
+        connection.execute(text("UPDATE alembic_version SET version_num = '9999_from_newer_code'"))
+    env = {"METAIRL_DATA_DIR": str(tmp_path)}
+    created = metairl_with(env, "keys", "create", "--lab", "gait")
+    served = metairl_with(env, "serve", "--port", "0")
+    for refused in (created, served):
+        assert refused.returncode == 1 and refused.stdout == "", refused.stderr
+        assert refused.stderr.count("\n") == 1 and "migrated by a newer metairl" in refused.stderr
+    assert database_state(settings) == "ahead"
     engine.dispose()
 
 
