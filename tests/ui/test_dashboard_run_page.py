@@ -447,6 +447,28 @@ def test_delete_buttons_remove_a_job_an_mdp_a_task_and_a_demonstrator(demo: Demo
     assert errors == []
 
 
+def test_refresh_after_a_job_is_deleted_elsewhere_closes_its_run_page_and_results(
+    demo: Demo, browser: Browser
+) -> None:
+    job_id = submit(demo.http, demo.ids["two_tasks"], FAST | {"max_steps": 5})
+    wait_for(demo.http, [job_id])
+    page, errors = dashboard(browser, demo)
+    row = page.locator(f"tr[data-job='{job_id}']")
+    row.locator("[data-action='run']").click()
+    page.wait_for_selector(f"#run[data-job='{job_id}'] #loss-curve svg")
+    row.locator("[data-action='results']").click()
+    page.wait_for_selector(f"#results[data-job='{job_id}'] #heatmaps img[data-reward]")
+
+    assert demo.http.delete(f"/v1/jobs/{job_id}").status_code == 204
+    page.click("#refresh")
+    page.wait_for_selector(f"tr[data-job='{job_id}']", state="detached")
+    page.wait_for_selector("#run", state="hidden")
+    page.wait_for_selector("#results", state="hidden")
+    assert page.locator("#run[data-job], #results[data-job]").count() == 0
+    assert page.locator("#message").is_hidden() or not page.locator("#message").inner_text().startswith("404")
+    assert errors == []
+
+
 def test_filters_by_status_and_demonstrator_and_paging_change_the_job_list(
     demo: Demo, browser: Browser
 ) -> None:

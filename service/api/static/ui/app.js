@@ -630,6 +630,18 @@ async function refreshJob(id) {
   return job;
 }
 
+// Whether a job is still there (false for none, or once deleted, on this page or elsewhere).
+async function jobExists(id) {
+  if (id === null) return false;
+  try {
+    await getJson(`/v1/jobs/${encodeURIComponent(id)}`);
+    return true;
+  } catch (error) {
+    if (error instanceof ApiError && error.status === 404) return false;
+    throw error;
+  }
+}
+
 async function poll(id, signal) {
   setMode("polling");
   while (!signal.aborted) {
@@ -1258,12 +1270,22 @@ document.addEventListener("DOMContentLoaded", () => {
   $("key-forget").addEventListener("click", forgetKey);
   $("refresh").addEventListener("click", () => {
     const generation = state.generation;
-    const selected = state.selected;
-    loadEverything().then(() => {
-      if (generation !== state.generation) return;
-      if (selected && state.jobs.has(selected)) showResults(selected);
-      redrawPanels();
-    });
+    const { run, selected } = state;
+    loadEverything()
+      .then(() => Promise.all([jobExists(run), jobExists(selected)]))
+      .then(([runThere, selectedThere]) => {
+        if (generation !== state.generation) return;
+        // A job deleted elsewhere closes its run page and results; one on another page of the list stays.
+        if (run !== null && state.run === run && !runThere) hideRun();
+        if (selected !== null && state.selected === selected) {
+          if (selectedThere) showResults(selected);
+          else hideResults();
+        }
+        redrawPanels();
+      })
+      .catch((error) => {
+        if (generation === state.generation) reportError(error);
+      });
   });
   $("compare-with").addEventListener("change", showComparison);
   $("webhook-form").addEventListener("submit", addWebhook);
