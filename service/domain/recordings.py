@@ -11,7 +11,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, StringConstraints, field_validator
 from pydantic.json_schema import JsonDict, JsonValue
 
-from metairl_engine.motion.force_plate import MIN_FZ, PlateAxes
+from metairl_engine.motion.force_plate import MIN_FZ, PlateAxes, length_unit
 from metairl_engine.motion.recording import Bounds, DiscretiseSettings, SegmentSettings
 from service.domain.common import Body, Number, Resource, UploadFormat
 from service.store.models.recordings import Recording as RecordingRow
@@ -100,7 +100,8 @@ class RecordingOptions(Body):
         max_length=16,
         description="The length unit of x and y (e.g. `cm`), reported with the sway measures; a COP CSV's header "
         "may give it instead (`COPx[cm]`). A force-plate file's COP is stored in metres: a `units` sent with one "
-        "must name the file's own unit (a C3D's `POINT:UNITS`) or m, else 422.",
+        "must name the file's own unit (a C3D's `POINT:UNITS`) or m, else 422. A spelling of metres, "
+        "centimetres or millimetres is stored as `m`, `cm` or `mm`.",
     )
     bounds: Bounds | None = Field(
         default=None,
@@ -112,6 +113,13 @@ class RecordingOptions(Body):
         default=SegmentSettings(), description="How the session splits into out-and-back movements."
     )
 
+    @field_validator("units")
+    @classmethod
+    def _one_spelling(cls, units: str | None) -> str | None:
+        """``metres``, ``Millimeter``, … as ``m``, ``mm``, as a header's unit is read: one spelling per unit,
+        so trials compare and convert whatever their uploads called it; another unit is kept as sent."""
+        return None if units is None else length_unit(units) or units
+
 
 class PlateIn(Body):
     """How to read a force-plate file (a C3D, or a CSV of forces and moments) into COP samples in metres."""
@@ -119,7 +127,8 @@ class PlateIn(Body):
     axes: PlateAxes = Field(
         default=PlateAxes(),
         description="Where the file's +x and +y axes point (`right`, `left`, `forward`, `backward`); +z completes "
-        "a right-handed frame. C3D: the lab's axes; CSV: the plate's (AMTI's, +y forward: x `left`).",
+        "a right-handed frame. C3D: the two lab axes after the vertical, as `settings.plate.lab_axes` records; "
+        "CSV: the plate's (AMTI's, +y forward: x `left`).",
     )
     min_fz: float = Field(
         default=MIN_FZ,

@@ -123,7 +123,7 @@ def c3d_samples(
     p = c3d.platforms[number - 1]
     chosen = plate.platform is not None
     normal = _normal(p)
-    plane = [axis for axis in range(3) if axis != normal]
+    plane = in_plane_axes(normal)
     if p.force.shape[-1] == 0 or not np.isfinite(p.force[normal]).any():
         raise _invalid(
             "/plate/platform" if chosen else "/file",
@@ -195,6 +195,14 @@ def _plausible_unit(unit: str, side: float) -> tuple[str, str]:
     if len(fits) != 1:
         return unit, "the file's unit (its corners fit no unit)"
     return fits[0], f"the corners' size: {side:g} {unit} is no force plate, {side:g} {fits[0]} is"
+
+
+def in_plane_axes(normal: int) -> list[int]:
+    """The lab axes that are the plate's x and y: the two after the vertical in cyclic order (x, y under z up;
+    z, x under y up; y, z under x up), so that seen from above they turn as x and y do (x × y = up) and the
+    COP is not mirrored. The vertical is taken to point up, as the corners of every real C3D the tests read
+    say it does (C3D numbers a plate's corners so that its own x × y points into the floor)."""
+    return [(normal + 1) % 3, (normal + 2) % 3]
 
 
 def _normal(platform: Platform) -> int:

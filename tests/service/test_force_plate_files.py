@@ -66,10 +66,12 @@ def c3d_bytes(
     events: Sequence[tuple[str, float]] = (),
     platforms: int = 1,
     channels: int | None = None,
+    vertical: str = "z",
 ) -> bytes:
     """A C3D at `RATE` Hz, analogs only, whose platform `platforms` (type 2, corners 400 mm square about
     `CENTRE_MM`, units mm and N) carries the load `fz` at `cop_m` (metres about its centre); the others carry
-    nothing. `channels` fewer analog channels than the plates need breaks FORCE_PLATFORM:CHANNEL."""
+    nothing. `channels` fewer analog channels than the plates need breaks FORCE_PLATFORM:CHANNEL. `vertical`
+    ``"y"`` writes the same plate in a y-up lab, the z-up lab turned so that its (x, y, z) is (z, x, y)."""
     n = len(cop_m)
     fz = np.broadcast_to(np.asarray(fz, dtype=np.float64), (n,))
     shear = np.column_stack([np.full(n, 8.0), np.full(n, -5.0)])
@@ -95,7 +97,8 @@ def c3d_bytes(
             [cx - 200, cy - 200, 0],
             [cx + 200, cy - 200, 0],
         ]
-        corners = np.repeat(np.array(square, dtype=np.float64).T[:, :, np.newaxis], platforms, axis=2)
+        lab = np.array(square, dtype=np.float64).T[[0, 1, 2] if vertical == "z" else [1, 2, 0]]
+        corners = np.repeat(lab[:, :, np.newaxis], platforms, axis=2)
         c.add_parameter("FORCE_PLATFORM", "CORNERS", corners)
         c.add_parameter("FORCE_PLATFORM", "ORIGIN", np.zeros((3, platforms)))
     for label, time in events:
@@ -180,6 +183,23 @@ def test_a_c3d_recording_stores_the_plates_cop_in_metres_about_its_centre_with_i
     np.testing.assert_allclose(np.column_stack([rec.x, rec.y]), COP, atol=1e-5)
     np.testing.assert_allclose(rec.t, t[10:-5], atol=1e-5)
     assert rec.instruction.tolist() == [canonical_instruction(i) for i in INSTRUCTION]
+
+
+def test_a_c3d_from_a_y_up_lab_stores_the_same_cop_as_from_a_z_up_one_not_its_mirror_image(
+    app: FastAPI, client: TestClient, auth: dict[str, str], tmp_path: Path
+) -> None:
+    """The lab turned (a rotation, no reflection) leaves the patient's sway as it was: lab z and x are the
+    plate's x and y under y up, as lab x and y are under z up."""
+    dem = make_demonstrator(client, auth)
+    z_up, y_up = (
+        created(post_file(client, auth, dem["id"], c3d_bytes(tmp_path, COP, vertical=v), f"{v}.c3d"))
+        for v in ("z", "y")
+    )
+    assert z_up["settings"]["plate"]["lab_axes"] == {"vertical": "z", "x": "x", "y": "y"}
+    assert y_up["settings"]["plate"]["lab_axes"] == {"vertical": "y", "x": "z", "y": "x"}
+    for out in (z_up, y_up):
+        rec = stored(app, out["id"])
+        np.testing.assert_allclose(np.column_stack([rec.x, rec.y]), COP, atol=1e-5)
 
 
 def test_a_c3d_and_the_same_samples_as_json_make_the_same_demonstrations(

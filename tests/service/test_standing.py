@@ -16,6 +16,9 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
+from service.files.c3d import read_c3d
+from service.files.force_plates import in_plane_axes
+from service.problems import Unprocessable
 from tests.service.helpers import created, make_demonstrator
 from tests.shared_data import shared_data
 
@@ -310,7 +313,8 @@ def test_the_quirks_of_real_c3d_files_are_read_and_recorded(client: TestClient, 
 
     kistler = standing("Kistler.c3d")["settings"]["plate"]
     assert kistler["rate_hz"] == 600 and kistler["rate_source"] == "ANALOG:RATE"
-    assert kistler["lab_axes"]["vertical"] == "y" and kistler["position_unit_read_as"] == "mm"
+    assert kistler["lab_axes"] == {"vertical": "y", "x": "z", "y": "x"}  # turned as x, y: not mirrored
+    assert kistler["position_unit_read_as"] == "mm"
     qualisys = standing("Qualisys.c3d")["settings"]["plate"]
     assert qualisys["events"] == "ignore" and qualisys["n_events"] > 0
     data = (folder / "Qualisys.c3d").read_bytes()
@@ -320,7 +324,7 @@ def test_the_quirks_of_real_c3d_files_are_read_and_recorded(client: TestClient, 
     error = problem(events)
     assert error["pointer"] == "/events/0/label" and 'plate.events = "ignore"' in error["message"]
     bts = standing("BTS.c3d")
-    assert bts["settings"]["plate"]["lab_axes"]["vertical"] == "y"
+    assert bts["settings"]["plate"]["lab_axes"] == {"vertical": "y", "x": "z", "y": "x"}
     half = upload(client, auth, dem["id"], "q.c3d", data[: len(data) // 2], protocol="standing")
     error = problem(half)
     assert error["pointer"] == "/file" and "is truncated" in error["message"]
@@ -371,6 +375,21 @@ def test_trials_in_cm_and_mm_are_compared_in_one_unit(client: TestClient, auth: 
     assert summary["unit"] == "cm" and summary["units"] == ["cm", "mm"]
     all_mm, _ = standing_trials(client, auth, [("closed", "mm", 10.0), ("open", "m", 0.01)])
     assert created(sway_summary(client, auth, all_mm), 200)["unit"] == "mm"  # a tie: the finer unit
+
+
+def test_a_unit_spelt_out_is_stored_and_compared_as_its_symbol(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    """``centimetres`` and ``Millimeter`` are cm and mm, as in a CSV header: one unit per trial, not a 409."""
+    dem, ids = standing_trials(
+        client, auth, [("closed", "centimetres", 1.0), ("open", "cm", 1.0), ("open", "Millimeter", 10.0)]
+    )
+    listed = client.get(f"/v1/demonstrators/{dem}/recordings", headers=auth).json()["data"]
+    assert {r["id"]: r["settings"]["units"] for r in listed} == dict(
+        zip(ids, ["cm", "cm", "mm"], strict=True)
+    )
+    summary = created(sway_summary(client, auth, dem), 200)
+    assert summary["unit"] == "cm" and summary["units"] == ["cm", "mm"]
 
 
 def test_trials_with_and_without_a_unit_are_a_409_naming_those_without(
@@ -441,3 +460,27 @@ def test_a_c3d_whose_cop_leaves_its_plate_says_how_much_beside_every_measure(
     still = created(upload(client, auth, dem["id"], "q.c3d", quiet, protocol="standing"))
     assert still["settings"]["plate"]["off_plate_fraction"] == 0
     assert "samples" not in created(sway(client, auth, still["id"]), 200)["caveats"]
+
+
+def test_the_corners_of_every_real_plate_say_its_lab_vertical_points_up() -> None:
+    """What `in_plane_axes` assumes, on the corpus: C3D numbers a plate's corners so that its own x × y points
+    into the floor, and in every file that is down the lab's vertical axis (plates with corners no real plate
+    has, like FP_Type1's, are left out)."""
+    checked = 0
+    for path in corpus():
+        try:
+            platforms = read_c3d(path.read_bytes()).platforms
+        except Unprocessable:  # the corpus's unreadable files
+            continue
+        for p in platforms:
+            corners = p.corners
+            x, y = corners[:, 0] - corners[:, 1], corners[:, 0] - corners[:, 3]
+            up = -np.cross(x, y)
+            if not np.isfinite(up).all() or np.linalg.norm(up) == 0 or np.abs(corners).max() > 1e5:
+                continue
+            vertical = int(np.argmin(np.ptp(corners, axis=1)))
+            assert up[vertical] > 0.99 * np.linalg.norm(up), (path.name, up)
+            a, b = np.eye(3)[in_plane_axes(vertical)]
+            assert np.cross(a, b)[vertical] == 1
+            checked += 1
+    assert checked >= 25
