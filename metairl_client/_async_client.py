@@ -15,12 +15,12 @@ import httpx
 import numpy as np
 
 from metairl_client import _operations as ops
-from metairl_client._client import DEFAULT_TIMEOUT_S, client_headers
+from metairl_client._client import DEFAULT_TIMEOUT_S, checked_url, client_headers
 from metairl_client._errors import error_from_response
 from metairl_client._models import JobRewardIds, JobState, Page, Trajectory
 from metairl_client._operations import JobStatusName, Protocol, Quantity, RewardFormat, WebhookEvent
 from metairl_client._sse import aevents, is_event_stream
-from metairl_client._transport import Call, Retries, Timeout, send_async
+from metairl_client._transport import Call, Retries, Timeout, UseClientDefault, send_async
 from metairl_client._waiting import STREAM_FAILURES, NoStream, Waiter
 
 T = TypeVar("T")
@@ -39,8 +39,9 @@ class AsyncClient:
         max_retries: int = Retries.max_retries,
     ):
         if isinstance(url, str):
+            url = checked_url(url)
             headers = client_headers(api_key)
-            self.http = httpx.AsyncClient(base_url=url.rstrip("/"), headers=headers, timeout=timeout_s)
+            self.http = httpx.AsyncClient(base_url=url, headers=headers, timeout=timeout_s)
         else:
             self.http = url
         self.retries = Retries(max_retries=max_retries)
@@ -342,32 +343,44 @@ class AsyncClient:
                     await self._follow(waiter)
             while not waiter.finished:
                 waiter.check_deadline()
-                await asyncio.sleep(poll_s)
+                await asyncio.sleep(waiter.pause(poll_s))
                 waiter.show(await self.get_job(job_id))
             return waiter.current
+
+    def _stream_timeout(self) -> httpx.Timeout:
+        """This client's timeout (`with_options` included) as an `httpx.Timeout`."""
+        if isinstance(self.timeout, UseClientDefault):
+            return self.http.timeout
+        return httpx.Timeout(self.timeout)
 
     async def _follow(self, waiter: Waiter) -> None:
         """Read the job's event stream until its final status (see `Client._follow`)."""
         path = ops.events_path(waiter.job_id)
         failures = 0
         while True:
+            waiter.tick()
+            timeout = waiter.stream_timeout(self._stream_timeout())
+            headers = waiter.stream_headers()
             try:
-                async with self.http.stream("GET", path, headers=waiter.stream_headers()) as response:
+                async with self.http.stream("GET", path, headers=headers, timeout=timeout) as response:
                     if response.is_error:
                         await response.aread()
+                        if waiter.refuses_stream(response):
+                            raise NoStream
                         raise error_from_response(response)
                     if not is_event_stream(response):
                         raise NoStream
-                    async for event_id, kind, data in aevents(response):
+                    async for event_id, kind, data in aevents(response, waiter.tick):
                         failures = 0
                         if waiter.on_event(event_id, kind, data):
                             waiter.show(await self.get_job(waiter.job_id))
                             return
             except httpx.TransportError as exc:
+                waiter.check_deadline()
                 failures += 1
                 if failures > STREAM_FAILURES:
                     raise NoStream from exc
-                await asyncio.sleep(0.5 * failures)
+                await asyncio.sleep(waiter.pause(0.5 * failures))
             waiter.check_deadline()
             waiter.show(await self.get_job(waiter.job_id))
             if waiter.finished:
@@ -381,7 +394,9 @@ class AsyncClient:
         return await self._call(ops.job_rewards(job_id, exclude_top_truth))
 
     async def reward_values(self, reward_id: str, *, quantity: Quantity = "reward") -> np.ndarray:
-        """`GET /v1/rewards/{id}?format=npy`: a reward (or a task's ``value`` or ``policy``) as float64."""
+        """`GET /v1/rewards/{id}?format=npy`: a reward as float64; or a task's ``value`` or ``policy``, or any
+        reward's ``uncertainty`` (its spread across the ensemble) or ``evidence`` (1 demonstrated, 0.5 one move
+        away, 0)."""
         return await self._call(ops.reward_values(reward_id, quantity))
 
     async def download_reward(
@@ -392,8 +407,8 @@ class AsyncClient:
         quantity: Quantity = "reward",
         overlay: bool = False,
     ) -> bytes:
-        """`GET /v1/rewards/{id}?format=…`: a reward, value function or policy in any format, as bytes
-        (``overlay`` draws the demonstrations on a PNG)."""
+        """`GET /v1/rewards/{id}?format=…`: a reward, value function, policy, uncertainty or evidence in
+        any format, as bytes (``overlay`` draws the demonstrations on a PNG)."""
         return await self._call(ops.download_reward(reward_id, format, quantity, overlay))
 
     async def reward_png(self, reward_id: str) -> bytes:

@@ -21,13 +21,27 @@ from metairl_client._errors import error_from_response
 from metairl_client._models import JobRewardIds, JobState, Page, Trajectory
 from metairl_client._operations import JobStatusName, Protocol, Quantity, RewardFormat, WebhookEvent
 from metairl_client._sse import events, is_event_stream
-from metairl_client._transport import Call, Retries, Timeout, send
+from metairl_client._transport import Call, Retries, Timeout, UseClientDefault, send
 from metairl_client._version import __version__
 from metairl_client._waiting import STREAM_FAILURES, NoStream, Waiter
 
 T = TypeVar("T")
 
 DEFAULT_TIMEOUT_S = 60.0
+
+
+def checked_url(url: str) -> str:
+    """The service's base URL without a trailing slash; `ValueError` for one without ``http://`` or ``https://``
+    (``127.0.0.1:8000``), which httpx would only refuse at the first request, as if the service were down."""
+    try:
+        scheme = httpx.URL(url).scheme
+    except httpx.InvalidURL as error:
+        raise ValueError(f"not a URL: {url!r} ({error})") from error
+    if scheme not in ("http", "https"):
+        raise ValueError(
+            f"the service URL must start with http:// or https:// (as `metairl serve` prints it): {url!r}"
+        )
+    return url.rstrip("/")
 
 
 def client_headers(api_key: str | None) -> dict[str, str]:
@@ -49,9 +63,8 @@ class Client:
         max_retries: int = Retries.max_retries,
     ):
         if isinstance(url, str):
-            self.http = httpx.Client(
-                base_url=url.rstrip("/"), headers=client_headers(api_key), timeout=timeout_s
-            )
+            url = checked_url(url)
+            self.http = httpx.Client(base_url=url, headers=client_headers(api_key), timeout=timeout_s)
         else:
             self.http = url
         self.retries = Retries(max_retries=max_retries)
@@ -356,33 +369,46 @@ class Client:
                     self._follow(waiter)
             while not waiter.finished:
                 waiter.check_deadline()
-                time.sleep(poll_s)
+                time.sleep(waiter.pause(poll_s))
                 waiter.show(self.get_job(job_id))
             return waiter.current
 
+    def _stream_timeout(self) -> httpx.Timeout:
+        """This client's timeout (`with_options` included) as an `httpx.Timeout`."""
+        if isinstance(self.timeout, UseClientDefault):
+            return self.http.timeout
+        return httpx.Timeout(self.timeout)
+
     def _follow(self, waiter: Waiter) -> None:
         """Read the job's event stream until its final status, reconnecting after the last event seen;
-        `NoStream` when the server does not stream or the connection keeps failing."""
+        `NoStream` when the server does not stream, refuses a stream for now (429, 503), the connection keeps
+        failing or the deadline is near; `TimeoutError` past the deadline, quiet stream or not."""
         path = ops.events_path(waiter.job_id)
         failures = 0
         while True:
+            waiter.tick()
+            timeout = waiter.stream_timeout(self._stream_timeout())
+            headers = waiter.stream_headers()
             try:
-                with self.http.stream("GET", path, headers=waiter.stream_headers()) as response:
+                with self.http.stream("GET", path, headers=headers, timeout=timeout) as response:
                     if response.is_error:
                         response.read()
+                        if waiter.refuses_stream(response):
+                            raise NoStream
                         raise error_from_response(response)
                     if not is_event_stream(response):
                         raise NoStream
-                    for event_id, kind, data in events(response):
+                    for event_id, kind, data in events(response, waiter.tick):
                         failures = 0
                         if waiter.on_event(event_id, kind, data):
                             waiter.show(self.get_job(waiter.job_id))  # the final row: error, last progress
                             return
             except httpx.TransportError as exc:
+                waiter.check_deadline()
                 failures += 1
                 if failures > STREAM_FAILURES:
                     raise NoStream from exc
-                time.sleep(0.5 * failures)
+                time.sleep(waiter.pause(0.5 * failures))
             waiter.check_deadline()
             waiter.show(self.get_job(waiter.job_id))  # the stream ended (its time limit, or a drop)
             if waiter.finished:
@@ -396,7 +422,9 @@ class Client:
         return self._call(ops.job_rewards(job_id, exclude_top_truth))
 
     def reward_values(self, reward_id: str, *, quantity: Quantity = "reward") -> np.ndarray:
-        """`GET /v1/rewards/{id}?format=npy`: a reward (or a task's ``value`` or ``policy``) as float64."""
+        """`GET /v1/rewards/{id}?format=npy`: a reward as float64; or a task's ``value`` or ``policy``, or any
+        reward's ``uncertainty`` (its spread across the ensemble) or ``evidence`` (1 demonstrated, 0.5 one move
+        away, 0)."""
         return self._call(ops.reward_values(reward_id, quantity))
 
     def download_reward(
@@ -407,8 +435,8 @@ class Client:
         quantity: Quantity = "reward",
         overlay: bool = False,
     ) -> bytes:
-        """`GET /v1/rewards/{id}?format=…`: a reward, value function or policy in any format, as bytes
-        (``overlay`` draws the demonstrations on a PNG)."""
+        """`GET /v1/rewards/{id}?format=…`: a reward, value function, policy, uncertainty or evidence in
+        any format, as bytes (``overlay`` draws the demonstrations on a PNG)."""
         return self._call(ops.download_reward(reward_id, format, quantity, overlay))
 
     def reward_png(self, reward_id: str) -> bytes:

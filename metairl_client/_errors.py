@@ -35,6 +35,11 @@ class MetairlError(Exception):
         self.problem: dict[str, Any] = dict(problem or {"status": status, "title": title, "detail": detail})
         super().__init__(self.describe())
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickle the error whole (a process pool hands a worker's error back pickled): rebuilt from its
+        attributes, since the constructors take other arguments than the ones they keep."""
+        return _rebuild, (type(self), self.args, self.__dict__)
+
     @classmethod
     def from_response(cls, response: httpx.Response) -> APIStatusError:
         """The error of a non-2xx response: the `APIStatusError` subclass of its status."""
@@ -142,6 +147,14 @@ STATUS_ERRORS: dict[int, type[APIStatusError]] = {
     429: RateLimitError,
     503: ServiceUnavailableError,
 }
+
+
+def _rebuild(kind: type[MetairlError], args: tuple[Any, ...], state: dict[str, Any]) -> MetairlError:
+    """An unpickled error: its class, message and attributes as they were."""
+    error = kind.__new__(kind)
+    error.args = args
+    error.__dict__.update(state)
+    return error
 
 
 def error_class(status: int) -> type[APIStatusError]:

@@ -29,8 +29,9 @@ Trajectory = TrajectoryLike | tuple[Sequence[int], Sequence[int]]
 
 @dataclass(frozen=True)
 class JobState:
-    """A job's status, its progress step (None before the first), its error when it failed and, once it
-    succeeded, how far its task rewards were shrunk toward the baseline."""
+    """A job's status, its progress step (None before the first) and losses, its error when it failed and,
+    once it succeeded, how far its task rewards were shrunk toward the baseline; what it fits (demonstrator,
+    tasks, the complete config) and the whole resource as ``body``."""
 
     id: str
     status: str
@@ -50,6 +51,26 @@ class JobState:
     sparsity: float | None = None
     """Once succeeded: the q of S_q, the share of each task's deviations from the baseline set to zero (0: every
     deviation kept); None as ``shrinkage`` is."""
+    created_at: datetime | None = None
+    demonstrator_id: str | None = None
+    task_ids: tuple[str, ...] = ()
+    """The tasks the job fits."""
+    config: dict[str, Any] = field(default_factory=dict, hash=False)
+    """The complete config the job runs with (every default filled in)."""
+    loss: float | None = None
+    """The latest progress point's total loss (None before the first step); ``irl_loss`` and ``sharing_loss``
+    its two parts, ``heldout_nll`` the held-out negative log-likelihood, ``elapsed_s`` the time spent."""
+    irl_loss: float | None = None
+    sharing_loss: float | None = None
+    heldout_nll: float | None = None
+    elapsed_s: float | None = None
+    max_attempts: int | None = None
+    """How many runs the job may take (a worker that dies mid-run starts another)."""
+    cancel_requested: bool = False
+    best_step: int | None = None
+    """Once succeeded: the step whose parameters were kept."""
+    body: dict[str, Any] = field(default_factory=dict, repr=False, compare=False, hash=False)
+    """The job resource this state was read from (fields the client does not name, too)."""
 
     @property
     def finished(self) -> bool:
@@ -73,6 +94,7 @@ class JobState:
     def from_json(cls, body: dict[str, Any]) -> JobState:
         """The state of a job resource (progress is null until the worker reports a step)."""
         progress = body.get("progress") or {}
+        max_attempts = body.get("max_attempts")
         return cls(
             id=str(body["id"]),
             status=str(body["status"]),
@@ -85,6 +107,19 @@ class JobState:
             updated_at=when(body.get("updated_at")),
             shrinkage=body.get("shrinkage"),
             sparsity=body.get("sparsity"),
+            created_at=when(body.get("created_at")),
+            demonstrator_id=body.get("demonstrator_id"),
+            task_ids=tuple(str(t) for t in body.get("task_ids") or ()),
+            config=dict(body.get("config") or {}),
+            max_attempts=None if max_attempts is None else int(max_attempts),
+            cancel_requested=bool(body.get("cancel_requested")),
+            best_step=body.get("best_step"),
+            body=dict(body),
+            loss=progress.get("loss"),
+            irl_loss=progress.get("irl_loss"),
+            sharing_loss=progress.get("sharing_loss"),
+            heldout_nll=progress.get("heldout_nll"),
+            elapsed_s=progress.get("elapsed_s"),
         )
 
 
@@ -97,16 +132,28 @@ class JobRewardIds:
     task_names: dict[str, str] = field(default_factory=dict)
     """Each task's name, keyed by task id."""
     body: dict[str, Any] = field(default_factory=dict, repr=False)
-    """The whole answer (truth scores and summaries where the service gives them)."""
+    """The whole answer (summaries and links of each reward, too)."""
+    truth_pearson: dict[str, float] = field(default_factory=dict)
+    """Pearson correlation of each task's learned reward with its true reward (`Client.put_true_reward`), keyed
+    by task id: only the tasks that have one."""
+    n_states: int | None = None
+    """The length of every reward of the job (one value per state)."""
 
     @classmethod
     def from_json(cls, body: dict[str, Any]) -> JobRewardIds:
         """Read the answer of `GET /v1/jobs/{id}/rewards`."""
+        n_states = body["baseline"].get("n_states")
         return cls(
             baseline=str(body["baseline"]["reward_id"]),
             tasks={str(t["task_id"]): str(t["reward_id"]) for t in body["tasks"]},
             task_names={str(t["task_id"]): str(t["task_name"]) for t in body["tasks"] if t.get("task_name")},
             body=body,
+            truth_pearson={
+                str(t["task_id"]): float(t["truth_pearson"])
+                for t in body["tasks"]
+                if t.get("truth_pearson") is not None
+            },
+            n_states=None if n_states is None else int(n_states),
         )
 
 

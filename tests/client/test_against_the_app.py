@@ -196,11 +196,23 @@ def journey(app: FastAPI, lab: Any) -> None:
     lab.delete_job(cancelled.id)
     with pytest.raises(NotFoundError):
         lab.get_job(cancelled.id)
-    job = lab.submit_job(dem, task_ids=[task])
+    job = lab.submit_job(dem, task_ids=[task], config={"max_steps": 3})
     assert ids(lab.list_jobs(status="queued").data) == ids(lab.iter_jobs(demonstrator_id=dem)) == [job.id]
+    # The job's state carries what the job resource says it fits, with the complete config.
+    assert (job.demonstrator_id, job.task_ids, job.config["max_steps"]) == (dem, (task,), 3)
+    assert job.config["method"] == "meta_irl" and job.created_at is not None and job.max_attempts
+    assert job.body["id"] == job.id and job.loss is None  # no step yet
     baseline, reward = np.array([0.0, 0.5, 1.0]), np.array([1.0, 0.0, 2.0])
     store_results(
-        app, job_id=job.id, baseline=baseline, task_rewards=[reward], n_actions=2, shrinkage=0.5, sparsity=0.9
+        app,
+        job_id=job.id,
+        baseline=baseline,
+        task_rewards=[reward],
+        n_actions=2,
+        uncertainty=[np.array([0.1, 0.2, 0.3]), np.array([0.3, 0.2, 0.1])],
+        evidence=[np.array([1.0, 0.5, 0.0]), np.array([0.0, 0.5, 1.0])],
+        shrinkage=0.5,
+        sparsity=0.9,
     )
     finished = lab.wait(job.id, progress=False)
     assert (finished.status, finished.shrinkage, finished.sparsity) == ("succeeded", 0.5, 0.9)
@@ -209,11 +221,15 @@ def journey(app: FastAPI, lab: Any) -> None:
 
     # Results.
     rewards = lab.job_rewards(job.id)
-    assert list(rewards.tasks) == [task]
+    assert list(rewards.tasks) == [task] and rewards.n_states == 3
+    assert rewards.truth_pearson[task] == pytest.approx(np.corrcoef(reward, [0.0, 0.0, 1.0])[0, 1])
     learned_baseline, per_task = lab.rewards(job.id)
     assert np.allclose(learned_baseline, baseline) and np.allclose(per_task[task], reward)
     assert np.allclose(lab.reward_values(rewards.tasks[task], quantity="value"), 2 * reward)
     assert lab.download_reward(rewards.baseline, format="csv").decode().startswith("state,")
+    assert np.allclose(lab.reward_values(rewards.baseline, quantity="uncertainty"), [0.1, 0.2, 0.3])
+    assert np.allclose(lab.reward_values(rewards.tasks[task], quantity="evidence"), [0.0, 0.5, 1.0])
+    assert lab.download_reward(rewards.baseline, format="png", quantity="uncertainty").startswith(b"\x89PNG")
     assert lab.reward_png(rewards.baseline).startswith(b"\x89PNG")
     assert lab.compare(rewards.baseline, rewards.tasks[task])["pearson"] == pytest.approx(
         np.corrcoef(baseline, reward)[0, 1]
