@@ -70,10 +70,11 @@ def epic_distance(a: np.ndarray, b: np.ndarray, *, weights: np.ndarray | None = 
 
 
 def key_states(task_reward: np.ndarray, baseline: np.ndarray, *, top: int) -> np.ndarray:
-    """Indices of the ``top`` states where the task reward departs most from the baseline (paper §I)."""
+    """Indices of the ``top`` states where the task reward departs most from the baseline (paper §I); a state
+    where the two are equal departs not at all and is none (a task reward that is the baseline has none)."""
     diff = np.abs(np.asarray(task_reward, dtype=np.float64) - np.asarray(baseline, dtype=np.float64))
-    order = np.argsort(-diff, kind="stable")
-    return order[: max(0, min(top, diff.size))].astype(np.int64)
+    order = np.argsort(-diff, kind="stable")[: max(0, min(top, diff.size))]
+    return order[diff[order] > 0].astype(np.int64)
 
 
 def nll(policy: np.ndarray, states: np.ndarray, actions: np.ndarray) -> float:

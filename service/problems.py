@@ -186,11 +186,12 @@ def validation_errors(errors: Sequence[Any], body: Any) -> Unprocessable:
         if isinstance(value, float) and not math.isfinite(value):  # NaN fails every bound: say why
             message = f"must be a finite number, not {value}"
         if loc and loc[0] in ("query", "path", "header", "cookie"):
+            name = str(loc[1]) if len(loc) > 1 else ""  # a repeated parameter's item adds its index
             items.append(
                 {
                     "pointer": "",
-                    "parameter": str(loc[-1]),
-                    "message": f"{loc[0]} parameter {loc[-1]}: {message}",
+                    "parameter": name,
+                    "message": f"{loc[0]} parameter {name}: {message}",
                 }
             )
         else:
@@ -285,14 +286,20 @@ def install_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(StarletteHTTPException)
     async def _http_error(request: Request, exc: StarletteHTTPException) -> JSONResponse:
-        """Starlette's HTTP errors (unknown route, wrong method) as problems; a 405's ``Allow`` lists every
-        method of the path; a JSON body that is not UTF-8 is a 422 like any other malformed JSON."""
+        """Starlette's HTTP errors (unknown route, wrong method) as problems; a 405's ``Allow`` and detail list
+        every method of the path, a 404's detail where the routes are; a JSON body that is not UTF-8 is a 422
+        like any other malformed JSON."""
         if exc.status_code == 400 and _is_json(_media_type(request)):
             return problem_response(not_utf8_json())
         headers = dict(exc.headers or {})
+        detail = str(exc.detail)
         if exc.status_code == 405:
-            headers["Allow"] = ", ".join(_allowed_methods(request))
-        error = ApiError(str(exc.detail), headers=headers)
+            allowed = _allowed_methods(request)
+            headers["Allow"] = ", ".join(allowed)
+            detail = f"{request.method} is not allowed on {request.url.path}: it takes {', '.join(allowed)}."
+        elif exc.status_code == 404:
+            detail = f"Nothing is at {request.url.path}: /docs lists the API's routes, each under /v1."
+        error = ApiError(detail, headers=headers)
         error.status, error.type, error.title = exc.status_code, f"http-{exc.status_code}", str(exc.detail)
         return problem_response(error)
 

@@ -198,7 +198,13 @@ class KeyStates(BaseModel):
     baseline_reward_id: str
     task_id: str
     top: int
-    states: list[KeyState]
+    states: list[KeyState] = Field(
+        description="At most `top`, largest departure first; only states where the task reward differs from "
+        "the baseline (none where it is the baseline)."
+    )
+    note: str | None = Field(
+        default=None, description="Why fewer than `top` states are listed, when they are; else null."
+    )
 
 
 class ComparisonMatrix(BaseModel):

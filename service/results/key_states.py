@@ -3,14 +3,9 @@ most from its job's baseline, the paper's reading of what a task adds."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
-
-if TYPE_CHECKING:
-    pass
 
 from service.domain.rewards import (
     KeyState,
@@ -47,7 +42,8 @@ def visited_states(session: Session, task_ids: list[str], n_states: int) -> np.n
 
 
 def reward_key_states(session: Session, ctx: RewardContext, *, top: int) -> KeyStates:
-    """The `top` states where the task reward departs most from its job's baseline; 409 for the baseline."""
+    """The `top` states where the task reward departs most from its job's baseline, with a note when fewer
+    depart at all; 409 for the baseline."""
     if ctx.task is None:
         raise Conflict(
             f"Reward {ctx.row.id} is the baseline, which key states are measured from; "
@@ -57,6 +53,19 @@ def reward_key_states(session: Session, ctx: RewardContext, *, top: int) -> KeyS
     task_values = get_array(session, ctx.row.reward_blob_id).astype(np.float64)
     baseline = get_array(session, baseline_row.reward_blob_id).astype(np.float64)
     states = metrics().key_states(task_values, baseline, top=top)
+    note = None
+    if len(states) < min(top, task_values.size):
+        why = (
+            " (the job's shrinkage λ is 0: it kept no deviation from the baseline)"
+            if ctx.job.shrinkage == 0
+            else ""
+        )
+        note = (
+            f"The task reward differs from the baseline at {len(states)} of {task_values.size} states{why}; "
+            "a state where they are equal is no key state."
+            if len(states)
+            else f"The task reward equals the baseline at every state{why}: no state departs from it."
+        )
     layout = ctx.layout
     coords = exports.grid_coordinates(states, layout) if layout else (None, None, None)
     return KeyStates(
@@ -77,4 +86,5 @@ def reward_key_states(session: Session, ctx: RewardContext, *, top: int) -> KeyS
             )
             for rank, s in enumerate(states)
         ],
+        note=note,
     )

@@ -52,7 +52,8 @@ def test_key_states_are_the_largest_departures_from_the_baseline() -> None:
     baseline = np.zeros(6)
     task = np.array([0.1, -3.0, 0.0, 2.0, 0.5, 0.0])
     assert key_states(task, baseline, top=3).tolist() == [1, 3, 4]
-    assert key_states(task, baseline, top=99).shape == (6,)
+    assert key_states(task, baseline, top=99).tolist() == [1, 3, 4, 0]  # not the two equal states
+    assert key_states(baseline, baseline, top=3).tolist() == []
 
 
 def test_nll_and_accuracy_of_a_policy() -> None:

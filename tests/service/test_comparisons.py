@@ -267,6 +267,32 @@ def test_key_states_are_the_largest_departures_from_the_baseline(
     assert len(default["states"]) == 10
 
 
+def test_states_where_a_task_reward_equals_the_baseline_are_no_key_states(
+    app: FastAPI, client: TestClient, auth: dict[str, str], mdp: dict[str, Any]
+) -> None:
+    """A task reward that is the baseline lists none and says so; one that departs at 2 states lists those 2."""
+    rewards = random_rewards(3, N_STATES, seed=5)
+    rewards[1] = rewards[0]
+    rewards[2] = rewards[0]
+    rewards[2, [3, 7]] += [0.5, -1.0]
+    job = fitted_job(
+        app, client, auth, mdp=mdp, demonstrations={"walk right": RIGHT, "walk up": UP}, rewards=rewards
+    )
+    same, two = (
+        created(client.get(f"/v1/rewards/{rid}/key-states", params={"top": 5}, headers=auth), 200)
+        for rid in job["reward_ids"][1:]
+    )
+    assert same["states"] == [] and same["note"].startswith(
+        "The task reward equals the baseline at every state"
+    )
+    assert [s["state"] for s in two["states"]] == [7, 3]
+    assert two["note"].startswith(f"The task reward differs from the baseline at 2 of {N_STATES} states")
+    full = created(
+        client.get(f"/v1/rewards/{job['reward_ids'][2]}/key-states", params={"top": 2}, headers=auth), 200
+    )
+    assert full["note"] is None
+
+
 def load_example(name: str) -> ModuleType:
     """A script of docs/examples as a module (not run as __main__)."""
     spec = importlib.util.spec_from_file_location(name, ROOT / "docs" / "examples" / f"{name}.py")

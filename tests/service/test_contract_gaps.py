@@ -148,6 +148,22 @@ def test_405_allow_lists_every_method_of_the_path(
         problem(response, 405)
         allowed = {m.strip() for m in response.headers["allow"].split(",")}
         assert allowed == {m.upper() for m in paths[template]}, (template, allowed)
+    # A URL whose resource is made by POST, followed with GET, says so (the motion comparison's png link).
+    detail = problem(client.get("/v1/motion-comparisons", headers=auth), 405)["detail"]
+    assert detail == "GET is not allowed on /v1/motion-comparisons: it takes POST."
+
+
+def test_an_unknown_route_is_a_404_problem_that_says_where_the_routes_are(client: TestClient) -> None:
+    """A base URL that already ends in /v1 doubles it: the answer says the routes are each under /v1."""
+    answer = problem(client.get("/v1/v1/jobs"), 404)
+    assert answer["detail"] == "Nothing is at /v1/v1/jobs: /docs lists the API's routes, each under /v1."
+
+
+def test_a_repeated_query_parameter_s_bad_item_names_the_parameter(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    error = problem(client.get("/v1/jobs", params={"status": "bogus"}, headers=auth), 422)["errors"][0]
+    assert error["parameter"] == "status" and error["message"].startswith("query parameter status: ")
 
 
 def test_job_routes_document_their_problem_responses(app: FastAPI) -> None:

@@ -828,7 +828,7 @@ function renderKeyStates(tasks, all, job) {
       const channel = s.channel === null || s.channel === undefined ? "" : channelName(layout, s.channel);
       return `${s.x}, ${s.y}${channel ? ` (${channel})` : ""}`;
     };
-    const same = ks.states.length > 0 && ks.states.every((s) => Math.abs(s.difference) < 1e-9);
+    const same = ks.states.every((s) => Math.abs(s.difference) < 1e-9); // none departs: the API lists none
     const why = job && job.shrinkage === 0 ? " (λ 0: the fit kept no deviation from the baseline)" : "";
     return el(
       "table",
