@@ -123,11 +123,19 @@ def _mdp_id(session: Session, target: Target, *, lab_id: str) -> str:
 
 
 def _task_for(
-    session: Session, demonstrator: Demonstrator, *, label: str, mdp_id: str, recording_id: str
+    session: Session,
+    demonstrator: Demonstrator,
+    *,
+    label: str,
+    mdp_id: str,
+    target: Target,
+    recording_id: str,
 ) -> tuple[Task, bool]:
     """The demonstrator's task named `label` on `mdp_id` (oldest first), or a new one; and whether it is new.
 
-    A task of that name on another MDP is a 409: tasks fitted together must share one state space.
+    A task of that name on another MDP is a 409 naming the field that chose `mdp_id` (``target``): tasks
+    fitted together must share one state space. A grid made for this upload is named by its size, not by an
+    id the rollback leaves to nothing.
     """
     same_name = (
         session.execute(
@@ -146,9 +154,18 @@ def _task_for(
     if joined is not None:
         return joined, False
     if same_name:
-        raise Conflict(
+        field, asked = (
+            ("/mdp_id", f"MDP {mdp_id!r}")
+            if target.grid is None
+            else ("/grid", f"a {target.width}×{target.height} velocity grid")
+        )
+        message = (
             f"Task {same_name[0].id!r} ({label!r}) of this demonstrator is on MDP {same_name[0].mdp_id!r}, "
-            f"not {mdp_id!r}; upload onto that MDP or use another demonstrator."
+            f"not on {asked}"
+        )
+        raise Conflict(
+            f"{message}; upload with that `mdp_id` or use another demonstrator.",
+            errors=[{"pointer": field, "message": message}],
         )
     created = create_task(
         session,
@@ -220,7 +237,7 @@ def add_recording(
     tasks = []
     for label, trajectories in cut.by_label.items():
         task, created = _task_for(
-            session, demonstrator, label=label, mdp_id=mdp_id, recording_id=recording_id
+            session, demonstrator, label=label, mdp_id=mdp_id, target=target, recording_id=recording_id
         )
         batch = add_demonstrations(session, task, trajectories, fmt=samples.format)
         tasks.append(

@@ -248,6 +248,14 @@ def test_a_failure_after_the_first_task_rolls_back_the_whole_upload(
     response = post_json(client, auth, dem["id"], rows, grid={"width": SIZE, "height": SIZE})
     assert response.status_code == 409, response.text
     assert clash["id"] in response.json()["detail"]
+    # The grid made for the upload is rolled back with it: named by its size and field, not by a dead id.
+    assert response.json()["errors"] == [
+        {
+            "pointer": "/grid",
+            "message": f"Task {clash['id']!r} ('right') of this demonstrator is on MDP {corridor!r}, not on a "
+            f"{SIZE}×{SIZE} velocity grid",
+        }
+    ]
     assert list(tasks_of(client, auth, dem["id"])) == ["right"]  # "forward" was created, then rolled back
     assert client.get(f"/v1/demonstrators/{dem['id']}/recordings", headers=auth).json()["data"] == []
     assert [m["id"] for m in client.get("/v1/mdps", headers=auth).json()["data"]] == [corridor]
