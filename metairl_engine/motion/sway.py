@@ -189,13 +189,19 @@ class SwayMeasures:
 
 
 def analysed_samples(
-    t: np.ndarray, x: np.ndarray, y: np.ndarray, options: SwayOptions = SwayOptions()
+    t: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    options: SwayOptions = SwayOptions(),
+    *,
+    rate_hz: float | None = None,
 ) -> tuple[float, np.ndarray, np.ndarray]:
-    """The rate (`sampling_rate`) and the x, y the measures use: trimmed, then filtered if asked."""
+    """The rate and the x, y the measures use: trimmed, then filtered if asked. The rate is ``rate_hz`` where
+    the recording states it (a C3D's), else read off the times (`sampling_rate`)."""
     t, x, y = (np.asarray(a, dtype=np.float64) for a in (t, x, y))
     if len(t) < MIN_SWAY_SAMPLES:
         check([Issue("/samples", f"has {len(t)} samples; sway measures need at least {MIN_SWAY_SAMPLES}")])
-    rate = sampling_rate(t)
+    rate = sampling_rate(t) if rate_hz is None else float(rate_hz)
     check(options.issues(rate, duration_s=len(t) / rate))
     keep = (t >= t[0] + options.trim_start_s - 0.5 / rate) & (t <= t[-1] - options.trim_end_s + 0.5 / rate)
     if keep.sum() < MIN_SWAY_SAMPLES:
@@ -218,16 +224,22 @@ def analysed_samples(
 
 
 def sway_measures(
-    t: np.ndarray, x: np.ndarray, y: np.ndarray, options: SwayOptions = SwayOptions()
+    t: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    options: SwayOptions = SwayOptions(),
+    *,
+    rate_hz: float | None = None,
 ) -> SwayMeasures:
-    """All sway measures of COP samples ``t`` (s, increasing), ``x``, ``y`` (any length unit); see `METHODS`.
+    """All sway measures of COP samples ``t`` (s, increasing), ``x``, ``y`` (any length unit) sampled at
+    ``rate_hz`` where the recording states it (else read off ``t``); see `METHODS`.
 
     Frequency measures are NaN for an axis without power (the reason in ``not_estimated``) and carry a caveat
     below `MIN_SPECTRAL_DURATION_S` (``caveats``). Raises `InvalidInput` for fewer than `MIN_SWAY_SAMPLES` samples (after trimming) or
     unusable options."""
     from scipy import signal, stats
 
-    rate, x, y = analysed_samples(t, x, y, options)
+    rate, x, y = analysed_samples(t, x, y, options, rate_hz=rate_hz)
     n = len(x)
     duration = n / rate
     cx, cy = float(x.mean()), float(y.mean())

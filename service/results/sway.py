@@ -41,11 +41,18 @@ ROMBERG = ("closed", "open")
 """The vision labels whose quotient of means is the Romberg quotient (eyes closed / eyes open)."""
 
 
+def stated_rate(row: RecordingRow) -> float | None:
+    """The sampling rate a force-plate file states (a C3D's header or ANALOG:RATE), exact where the stored
+    float32 times only approximate it; None for samples that state none."""
+    rate = row.settings.get("plate", {}).get("rate_hz")
+    return None if rate is None else float(rate)
+
+
 def recording_sway(session: Session, row: RecordingRow, options: SwayOptions = SwayOptions()) -> SwayMeasures:
     """The sway measures of a stored recording; 422 naming the query option that cannot be used."""
     samples = get_array(session, row.samples_blob_id).astype(np.float64)
     try:
-        return sway_measures(samples[:, 0], samples[:, 1], samples[:, 2], options)
+        return sway_measures(samples[:, 0], samples[:, 1], samples[:, 2], options, rate_hz=stated_rate(row))
     except InvalidInput as exc:
         first = exc.issues[0]
         raise Unprocessable(
@@ -167,7 +174,7 @@ def sway_picture(session: Session, row: RecordingRow, options: SwayOptions) -> D
     measures = recording_sway(session, row, options)
     units = recording_units(row)
     samples = get_array(session, row.samples_blob_id).astype(np.float64)
-    _, x, y = analysed_samples(samples[:, 0], samples[:, 1], samples[:, 2], options)
+    _, x, y = analysed_samples(samples[:, 0], samples[:, 1], samples[:, 2], options, rate_hz=stated_rate(row))
     title = f"{row.name or row.id}: area95 {measures.area95:.3g} {units or 'units'}²"
     return Download(
         content=sway_png(x, y, measures.ellipse_outline(), units=units, title=title),
