@@ -325,7 +325,8 @@ def test_the_quirks_of_real_c3d_files_are_read_and_recorded(client: TestClient, 
     assert error["pointer"] == "/events/0/label" and 'plate.events = "ignore"' in error["message"]
     bts = standing("BTS.c3d")
     assert bts["settings"]["plate"]["lab_axes"] == {"vertical": "y", "x": "z", "y": "x"}
-    assert created(sway(client, auth, bts["id"]), 200)["rate_hz"] == 1000  # the file's, not its float32 times'
+    # The file's own rate, not one read off its float32 times.
+    assert created(sway(client, auth, bts["id"]), 200)["rate_hz"] == 1000
     half = upload(client, auth, dem["id"], "q.c3d", data[: len(data) // 2], protocol="standing")
     error = problem(half)
     assert error["pointer"] == "/file" and "is truncated" in error["message"]
