@@ -46,17 +46,20 @@ class MetairlError(Exception):
         return error_from_response(response)
 
     def describe(self) -> str:
-        """``HTTP 422 Invalid input (POST /v1/mdps): detail`` and one indented line per field error."""
+        """``HTTP 422 Invalid input (POST /v1/mdps): detail`` and one indented line per field error, unless the
+        detail already names the only one."""
         where = f" ({self.request})" if self.request else ""
         head = (
             f"HTTP {self.status} {self.title}{where}" if self.status is not None else f"{self.title}{where}"
         )
         lines = [f"{head}: {self.detail}" if self.detail else head]
-        lines += [
+        listed = [
             f"  - {e.get('pointer') or e.get('parameter') or '/'}: {e.get('message', '')}"
             for e in self.errors
         ]
-        return "\n".join(lines)
+        if len(self.errors) == 1 and str(self.errors[0].get("message", "")) in (self.detail or ""):
+            listed = []  # the service's detail already names its one field error
+        return "\n".join(lines + listed)
 
 
 class InvalidRequestError(MetairlError):

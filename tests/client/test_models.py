@@ -153,3 +153,21 @@ def test_a_service_url_keeps_its_path_without_the_trailing_slash() -> None:
     with Client("https://lab.example.org/metairl/", "key") as lab:
         assert str(lab.http.base_url) == "https://lab.example.org/metairl/"
         assert lab.http.build_request("GET", "/v1/jobs").url.path == "/metairl/v1/jobs"
+
+
+def test_an_errors_text_lists_a_field_error_once() -> None:
+    """The service's detail repeats its first field error: with one, the text does not say it twice; with
+    more, each is listed."""
+    request = httpx.Request("POST", "http://metairl.test/v1/jobs")
+    one = {"pointer": "/config/max_steps", "message": "Input should be greater than or equal to 1"}
+    other = {"pointer": "/config/ensemble", "message": "Input should be less than or equal to 16"}
+
+    def text(errors: list[dict[str, str]]) -> str:
+        problem = {"title": "Invalid input", "status": 422, "errors": errors}
+        detail = f"The request is invalid. {one['pointer']}: {one['message']}"
+        return str(
+            error_from_response(httpx.Response(422, json=problem | {"detail": detail}, request=request))
+        )
+
+    assert text([one]).count(one["message"]) == 1 and "\n" not in text([one])
+    assert text([one, other]).count(one["message"]) == 2 and text([one, other]).count("\n  - ") == 2
