@@ -3,9 +3,11 @@
 A plain library (numpy + torch, no web, no database), usable from a notebook (docs/notebook.md):
 ``from metairl_engine import fit, grid_mdp, TaskData, Trajectory``. Importing the package imports neither
 torch nor the fit: the numpy-only modules (`mdp`, `demos`, `config`, `errors`, `grids`, `metrics`) are what
-the API process uses. ``from metairl_engine import fit`` imports the module `metairl_engine.fit` (and torch),
-which is callable as its function `fit`.
+the API process uses. ``from metairl_engine import fit`` (or ``metairl_engine.fit``) imports the module `metairl_engine.fit` (and
+torch), which is callable as its function `fit`.
 """
+
+import importlib
 
 from metairl_engine.config import FitConfig
 from metairl_engine.demos import Trajectory, validate_trajectories
@@ -32,3 +34,11 @@ __all__ = [
     "grid_mdp",
     "validate_trajectories",
 ]
+
+
+def __getattr__(name: str) -> object:
+    """``metairl_engine.fit`` after a plain ``import metairl_engine``: the module `metairl_engine.fit`
+    (callable as its function), imported with torch on first use."""
+    if name == "fit":
+        return importlib.import_module("metairl_engine.fit")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

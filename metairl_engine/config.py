@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any, Literal, get_args, get_origin, get_type_hints
 
 from metairl_engine.errors import InvalidInput, Issue, check
+from metairl_engine.mdp import python_number
 
 Method = Literal["meta_irl", "maxent", "shared_maxent"]
 Sharing = Literal["none", "l2", "huber", "std", "entropy"]
@@ -248,8 +249,12 @@ class FitConfig:
         hints = get_type_hints(FitConfig)
         for f in fields(self):
             value = getattr(self, f.name)
-            if isinstance(value, list):  # a list where a tuple is meant: the same setting, kept hashable
-                object.__setattr__(self, f.name, value := tuple(value))
+            if isinstance(
+                value, list | tuple
+            ):  # a list where a tuple is meant: the same setting, kept hashable
+                object.__setattr__(self, f.name, value := tuple(python_number(v) for v in value))
+            elif python_number(value) is not value:  # np.int64(200): the Python number it holds
+                object.__setattr__(self, f.name, value := python_number(value))
             problem = type_problem(value, hints[f.name])
             if problem is None and f.metadata:
                 problem = out_of_bounds(value, f.metadata)

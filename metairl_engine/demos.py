@@ -60,6 +60,11 @@ def validate_trajectories(
         check([Issue(pointer, "needs at least one trajectory")])
     for j, tr in enumerate(trajectories):
         at = f"{pointer}/{j}"
+        if not isinstance(tr.states, np.ndarray) or not isinstance(tr.actions, np.ndarray):
+            issues.append(
+                Issue(at, "states and actions must be numpy arrays (build them with Trajectory.of)")
+            )
+            continue
         if tr.states.ndim != 1 or tr.actions.ndim != 1:
             issues.append(Issue(at, "states and actions must be flat lists of integers"))
             continue

@@ -244,7 +244,16 @@ def validate_tasks(tasks: Sequence[TaskData]) -> None:
     for i, task in enumerate(tasks):
         if not isinstance(task, TaskData):
             check([Issue(f"/tasks/{i}", f"must be a TaskData, not {type(task).__name__}")])
-        if isinstance(task.trajectories, Trajectory) or not all(
+        if not isinstance(task.mdp, MDP):
+            check(
+                [
+                    Issue(
+                        f"/tasks/{i}/mdp",
+                        f"must be an MDP (MDP.build, grid_mdp), not {type(task.mdp).__name__}",
+                    )
+                ]
+            )
+        if not isinstance(task.trajectories, Sequence) or not all(
             isinstance(t, Trajectory) for t in task.trajectories
         ):
             check(

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
@@ -19,6 +20,12 @@ FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 MAX_ISSUES = 20
 """At most this many issues are reported for one input; the first ones are the useful ones."""
+
+
+def python_number(value: Any) -> Any:
+    """A numpy scalar (``np.float32(0.9)``, ``np.int64(6)``, as a notebook's arithmetic gives) as the Python
+    number it holds; anything else as it is, for the checks to judge."""
+    return value.item() if isinstance(value, np.integer | np.floating) else value
 
 
 @dataclass(frozen=True)
@@ -95,6 +102,7 @@ class MDP:
         ``/transitions/p/12``, ``/layout``.
         """
         issues: list[Issue] = []
+        gamma, n_states, n_actions = (python_number(v) for v in (gamma, n_states, n_actions))
         if not (isinstance(gamma, int | float) and 0.0 <= float(gamma) < 1.0):
             issues.append(Issue("/gamma", f"must be a number in [0, 1), got {gamma!r}"))
         det = next_state is not None

@@ -95,7 +95,11 @@ def expected_value_difference(
 
     ``E_start[V*_true(s) − V^{π_learned}_true(s)]`` with π_learned greedy on the learned reward (one
     planning pass per reward, one policy evaluation); ``start`` is a start distribution (uniform default).
+    `ValueError` unless each reward (and ``start``) has one value per state of ``mdp``.
     """
+    for name, vector in (("true_reward", true_reward), ("learned_reward", learned_reward), ("start", start)):
+        if vector is not None and np.shape(vector) != (mdp.n_states,):
+            raise ValueError(f"{name} has shape {np.shape(vector)}; the MDP's states need ({mdp.n_states},)")
     p = transition_matrix(mdp)
     optimal = value_iteration(p, true_reward, gamma=mdp.gamma, backup="max")
     learned = value_iteration(p, learned_reward, gamma=mdp.gamma, backup="max")

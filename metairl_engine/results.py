@@ -69,7 +69,7 @@ def stored_config(data: object) -> FitConfig:
         ) from None
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class FitResult:
     """Learned rewards of T tasks on S states with A actions, all float32.
 
@@ -104,6 +104,16 @@ class FitResult:
     ARRAYS = ("baseline", "rewards", "values", "policies", "baseline_spread", "reward_spread")
     """The fields saved as arrays (the rest, config, history and best step, as JSON beside them)."""
 
+    def __repr__(self) -> str:
+        """One line a notebook can show: the shapes, the steps and what was kept, not every array in full."""
+        tasks, states = self.rewards.shape
+        spread = "" if self.reward_spread is None else ", with spreads"
+        return (
+            f"FitResult({tasks} tasks × {states} states × {self.policies.shape[-1]} actions{spread}; "
+            f"{len(self.history)} steps, best {self.best_step}; method={self.config.method!r}, "
+            f"shrinkage={self.shrinkage:g}, sparsity={self.sparsity:g})"
+        )
+
     def save(self, path: str | Path) -> None:
         """Write this result to one ``.npz`` file (arrays as they are; config, history and best step as JSON)."""
         arrays = {name: getattr(self, name) for name in self.ARRAYS if getattr(self, name) is not None}
@@ -120,10 +130,13 @@ class FitResult:
 
     @classmethod
     def load(cls, path: str | Path) -> FitResult:
-        """A result written by `save` (no pickles are read); `InvalidInput` at ``/file`` for any other file —
+        """A result written by `save` (no pickles are read); `FileNotFoundError` where no file is, and
+        `InvalidInput` at ``/file`` for any other file —
         truncated, corrupted, not one of ours — or one whose arrays do not fit together, saved in another format,
         or whose config lacks a setting or has one this metairl does not know (`stored_config`)."""
         not_ours = "is not a result written by FitResult.save"
+        if not Path(path).is_file():
+            raise FileNotFoundError(f"no file at {path}")
         if not zipfile.is_zipfile(
             path
         ):  # np.load would read it as a pickle and suggest loading that unsafely

@@ -76,6 +76,23 @@ def test_metrics_import_without_torch() -> None:
     assert out.strip() == "False"
 
 
+def test_the_fit_is_an_attribute_of_the_package_imported_with_torch_on_first_use() -> None:
+    code = (
+        "import sys, metairl_engine as m; before = 'torch' in sys.modules; f = m.fit; "
+        "print(before, 'torch' in sys.modules, callable(f), hasattr(m, 'nothing'))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["False", "True", "True", "False"]
+
+
+def test_a_reward_of_the_wrong_length_for_the_evd_says_which() -> None:
+    mdp = small_grid(size=4)
+    reward = bump_reward(4)
+    for wrong in (reward[:-1], np.stack([reward, reward])):
+        with pytest.raises(ValueError, match=r"learned_reward has shape .*; the MDP's states need \(16,\)"):
+            expected_value_difference(mdp, reward, wrong)
+
+
 def test_correlations_of_finite_values_near_the_float64_limits_are_finite() -> None:
     huge = np.array([1e308] * 12 + [-1e308] * 13)
     ramp = np.arange(25.0)

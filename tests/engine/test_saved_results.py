@@ -44,6 +44,24 @@ def test_a_saved_fit_loads_as_it_was(saved: Path) -> None:
     assert loaded.config == FitConfig(hidden=(8,), max_steps=5) and loaded.rewards.shape == (2, 25)
 
 
+def test_a_result_prints_as_one_line_of_shapes_and_compares_by_identity(saved: Path) -> None:
+    """A notebook shows the result without every array in full; == between two never asks an array for a truth
+    value (compare the arrays with np.array_equal)."""
+    loaded, again = FitResult.load(saved), FitResult.load(saved)
+    text = repr(loaded)
+    assert (
+        text.startswith("FitResult(2 tasks × 25 states × 5 actions") and "\n" not in text and len(text) < 200
+    )
+    assert loaded == loaded and loaded != again and np.array_equal(loaded.rewards, again.rewards)
+
+
+def test_loading_where_no_file_is_says_so(tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError, match="no file at"):
+        FitResult.load(tmp_path / "nothing.npz")
+    with pytest.raises(FileNotFoundError):
+        FitResult.load(tmp_path)  # a folder
+
+
 @pytest.mark.parametrize(
     "damage",
     [

@@ -154,7 +154,8 @@ def test_a_trajectory_of_fractional_states_is_refused_rather_than_truncated_to_o
 
 def test_fit_called_with_the_wrong_kinds_of_argument_says_which() -> None:
     """A notebook's slips: a dict for the config, one task for a list, a tuple for a task, a device torch
-    does not know: `InvalidInput` naming the argument, not an AttributeError deep in the fit."""
+    does not know, no MDP, trajectories as a generator or built from lists without `Trajectory.of`:
+    `InvalidInput` naming the argument, not an AttributeError deep in the fit."""
     task = TaskData(mdp=chain(), trajectories=[Trajectory.of([0, 1], [1])], name="t")
     for args, kwargs, pointer in (
         (([task], {"max_steps": 3}), {}, "/config"),
@@ -162,7 +163,22 @@ def test_fit_called_with_the_wrong_kinds_of_argument_says_which() -> None:
         (([(task.mdp, task.trajectories)],), {}, "/tasks/0"),
         (([TaskData(mdp=chain(), trajectories=[([0, 1], [1])], name="t")],), {}, "/tasks/0/trajectories"),  # type: ignore[list-item]
         (([task],), {"device": "tpu"}, "/device"),
+        (([TaskData(mdp=None, trajectories=task.trajectories)],), {}, "/tasks/0/mdp"),  # type: ignore[arg-type]
+        (([TaskData(chain(), (t for t in task.trajectories))],), {}, "/tasks/0/trajectories"),  # type: ignore[arg-type]
+        (([TaskData(mdp=chain(), trajectories=[Trajectory([0, 1], [1])])],), {}, "/tasks/0/trajectories/0"),  # type: ignore[arg-type]
     ):
         with pytest.raises(InvalidInput) as exc:
             fit(*args, **kwargs)  # type: ignore[arg-type]
         assert pointers(exc) == [pointer]
+
+
+def test_numpy_scalars_are_the_python_numbers_they_hold() -> None:
+    """A notebook's arithmetic gives numpy scalars: sizes, gamma and settings take them as plain numbers."""
+    mdp = MDP.build(gamma=np.float32(0.5), n_states=np.int64(2), next_state=np.array([[1], [0]]))  # type: ignore[arg-type]
+    assert (mdp.gamma, mdp.n_states) == (0.5, 2) and type(mdp.gamma) is float
+    settings: dict[str, Any] = {"max_steps": np.int64(10), "learning_rate": np.float64(0.01)}
+    config = FitConfig(**settings, hidden=[np.int64(8), 4])  # type: ignore[arg-type]
+    assert config == FitConfig(max_steps=10, learning_rate=0.01, hidden=(8, 4))
+    assert type(config.max_steps) is int and all(type(h) is int for h in config.hidden)
+    with pytest.raises(InvalidInput):
+        FitConfig(**{"max_steps": np.float64(2.5)})  # type: ignore[arg-type]  # a fraction, not a step count
