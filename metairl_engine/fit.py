@@ -268,6 +268,7 @@ def validate_tasks(tasks: Sequence[TaskData]) -> None:
     first = tasks[0].mdp
     for i, task in enumerate(tasks):
         m = task.mdp
+        issues += _unbuilt_mdp_issues(m, f"/tasks/{i}/mdp")
         if i > 0:
             for what, mine, theirs in (
                 ("states", m.n_states, first.n_states),
@@ -292,6 +293,29 @@ def validate_tasks(tasks: Sequence[TaskData]) -> None:
         except InvalidInput as exc:
             issues += exc.issues
     check(issues)
+
+
+def _unbuilt_mdp_issues(mdp: MDP, pointer: str) -> list[Issue]:
+    """What `MDP.build` refuses and an MDP made with ``MDP(...)`` directly may hold, checked cheaply: features
+    that are not one finite row per state, a next-state table of another shape or pointing outside the states
+    (else a fit fails later as a diverged loss, blaming its settings)."""
+    issues = []
+    built = "(MDP.build checks an MDP's arrays; MDP(...) does not)"
+    if mdp.features is not None and (
+        np.ndim(mdp.features) != 2 or len(mdp.features) != mdp.n_states or not np.isfinite(mdp.features).all()
+    ):
+        issues.append(Issue(f"{pointer}/features", f"must be {mdp.n_states} rows of finite numbers {built}"))
+    table = mdp.next_state
+    if table is not None and (
+        np.shape(table) != (mdp.n_states, mdp.n_actions) or table.min() < 0 or table.max() >= mdp.n_states
+    ):
+        issues.append(
+            Issue(
+                f"{pointer}/next_state",
+                f"must be {mdp.n_states}×{mdp.n_actions} states in 0..{mdp.n_states - 1} {built}",
+            )
+        )
+    return issues
 
 
 def _same_features(a: MDP, b: MDP) -> bool:

@@ -182,3 +182,23 @@ def test_numpy_scalars_are_the_python_numbers_they_hold() -> None:
     assert type(config.max_steps) is int and all(type(h) is int for h in config.hidden)
     with pytest.raises(InvalidInput):
         FitConfig(**{"max_steps": np.float64(2.5)})  # type: ignore[arg-type]  # a fraction, not a step count
+
+
+def test_an_mdp_made_without_build_is_checked_before_a_fit_blames_its_settings() -> None:
+    """``MDP(...)`` checks nothing: NaN features or a table of the wrong shape are InvalidInput naming the task's
+    MDP, not a diverged loss."""
+    good = chain()
+    nan_features = MDP(
+        n_states=good.n_states,
+        n_actions=good.n_actions,
+        gamma=0.9,
+        next_state=good.next_state,
+        features=np.full((good.n_states, 2), np.nan, dtype=np.float32),
+    )
+    short_table = MDP(
+        n_states=good.n_states + 1, n_actions=good.n_actions, gamma=0.9, next_state=good.next_state
+    )
+    for mdp, pointer in ((nan_features, "/tasks/0/mdp/features"), (short_table, "/tasks/0/mdp/next_state")):
+        with pytest.raises(InvalidInput) as exc:
+            fit([TaskData(mdp, [Trajectory.of([0, 1], [1])])], FitConfig(max_steps=3))
+        assert pointer in pointers(exc) and "MDP.build" in str(exc.value)
