@@ -33,8 +33,11 @@ class Trajectory:
 
 
 def _indices(values: Sequence[int] | np.ndarray, pointer: str) -> np.ndarray:
-    """``values`` as int64; `InvalidInput` at ``pointer/k`` for the first that is not a whole number."""
+    """``values`` as int64; `InvalidInput` at ``pointer`` unless flat, at ``pointer/k`` for the first that is not
+    a whole number."""
     array = np.asarray(values)
+    if array.ndim != 1:
+        check([Issue(pointer, f"must be a flat list of integers, not an array of shape {array.shape}")])
     if array.dtype.kind in "iub":
         return array.astype(np.int64)
     if array.dtype.kind != "f":

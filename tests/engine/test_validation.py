@@ -202,3 +202,9 @@ def test_an_mdp_made_without_build_is_checked_before_a_fit_blames_its_settings()
         with pytest.raises(InvalidInput) as exc:
             fit([TaskData(mdp, [Trajectory.of([0, 1], [1])])], FitConfig(max_steps=3))
         assert pointer in pointers(exc) and "MDP.build" in str(exc.value)
+
+
+def test_a_trajectory_of_nested_states_is_refused_where_it_is_built() -> None:
+    with pytest.raises(InvalidInput) as exc:
+        Trajectory.of(np.array([[0, 1], [1, 2]]), [1, 1])
+    assert pointers(exc) == ["/states"] and "(2, 2)" in str(exc.value)
