@@ -137,7 +137,9 @@ def test_dashboard_reads_out_a_sessions_motion_beside_its_learned_rewards_and_co
     # Above it, the verdict of the API on it against the recordings, in the API's words.
     verdict = page.locator("#learned [data-role='agreement']")
     assert verdict.get_attribute("data-verdict") == summary["learned"]["agreement"]["verdict"]
-    assert summary["learned"]["agreement"]["detail"] in verdict.inner_text()
+    headline, text = verdict.locator("strong").inner_text(), verdict.inner_text()
+    detail = summary["learned"]["agreement"]["detail"]
+    assert text.count(headline) == 1 and detail.removeprefix(headline).strip() in text  # its words, said once
 
     # The session comparison: the other recorded demonstrator is b; the figure and b − a per direction.
     assert page.locator("#compare-with").input_value() == after

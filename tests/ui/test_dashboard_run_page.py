@@ -9,9 +9,11 @@ The demo data and jobs are those of `scripts/screenshots.py` (made once for the 
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
+from urllib.parse import urlsplit
 
 import httpx
 import pytest
@@ -466,6 +468,44 @@ def test_refresh_after_a_job_is_deleted_elsewhere_closes_its_run_page_and_result
     page.wait_for_selector("#results", state="hidden")
     assert page.locator("#run[data-job], #results[data-job]").count() == 0
     assert page.locator("#message").is_hidden() or not page.locator("#message").inner_text().startswith("404")
+    assert errors == []
+
+
+def test_a_job_whose_task_rewards_are_the_baseline_says_so_once_above_its_heatmaps(
+    demo: Demo, browser: Browser
+) -> None:
+    job_id = demo.ids["two"]
+    page, errors = dashboard(browser, demo)
+
+    def at_lambda_0(route: Route) -> None:  # the job as a fit that kept no deviation would report it
+        response = route.fetch()
+        body = response.json()
+        for job in body.get("data", [body]):
+            if job["id"] == job_id:
+                job["shrinkage"] = 0.0
+        route.fulfill(response=response, json=body)
+
+    open_results(page, demo, job_id)
+    heatmaps_loaded(page, 3)
+    assert page.locator("#heatmaps [data-role='all-baseline']").count() == 0  # λ as fitted: no note
+    page.route(lambda url: re.fullmatch(r"/v1/jobs(/[^/]+)?", urlsplit(url).path) is not None, at_lambda_0)
+    page.click("#refresh")
+    page.wait_for_selector("#heatmaps [data-role='all-baseline']")
+    assert page.locator("#heatmaps [data-role='all-baseline']").count() == 1
+    assert page.locator("#heatmaps [data-role='all-baseline']").inner_text().startswith("λ 0:")
+    assert errors == []
+
+
+def test_the_job_form_lists_a_demonstrators_tasks_in_the_order_they_were_made(
+    demo: Demo, browser: Browser
+) -> None:
+    dem_id = demo.ids["four_tasks"]
+    tasks = ok(demo.http.get(f"/v1/demonstrators/{dem_id}/tasks"), 200)["data"]
+    made = [t["id"] for t in sorted(tasks, key=lambda t: t["created_at"])]
+    page, errors = dashboard(browser, demo)
+    page.select_option("#submit-demonstrator", dem_id)
+    shown = page.locator("#submit-tasks input[name='task']").evaluate_all("xs => xs.map(x => x.value)")
+    assert shown == made
     assert errors == []
 
 

@@ -319,6 +319,9 @@ async function loadDemonstrators(generation) {
         getAll(`/v1/demonstrators/${encodeURIComponent(d.id)}/tasks`),
         getAll(`/v1/demonstrators/${encodeURIComponent(d.id)}/recordings`).catch(() => []),
       ]);
+      // In the order they were made (the API lists newest first): a motion session's directions as recorded,
+      // and a job submitted from the form in the order a job submitted over the API has.
+      tasks.sort((a, b) => (a.created_at < b.created_at ? -1 : a.created_at > b.created_at ? 1 : 0));
       return { ...d, tasks, recordings };
     }),
   );
@@ -682,7 +685,7 @@ async function showResults(id, { scroll = false } = {}) {
   try {
     const rewards = await getJson(`/v1/jobs/${encodeURIComponent(id)}/rewards`);
     if (!current()) return;
-    renderHeatmaps(rewards, current);
+    renderHeatmaps(rewards, current, state.jobs.get(id));
     // Side by side while the matrix is small; stacked (each full width, scrolling inside) once it is not.
     document.querySelector(".results-grid").classList.toggle("stacked", rewards.tasks.length + 1 > 6);
     const keyStates = await Promise.all(
@@ -715,7 +718,7 @@ const BESIDE_REWARD = [
   ["evidence", "evidence: on a demonstrated path (yellow), one move off (teal), elsewhere (purple)"],
 ];
 
-function renderHeatmaps(rewards, current) {
+function renderHeatmaps(rewards, current, job) {
   const layout = rewards.tasks.length ? layoutOfTask(rewards.tasks[0].task_id) : null;
   const cards = [rewards.baseline, ...rewards.tasks].map((reward) => {
     const title = reward.kind === "baseline" ? "baseline (shared)" : reward.task_name || reward.task_id;
@@ -771,7 +774,12 @@ function renderHeatmaps(rewards, current) {
   // A layout of many channels (a velocity grid's eight directions) is one wide picture of small panels:
   // its cards take a wider column, fewer a row, so each panel stays legible.
   $("heatmaps").classList.toggle("wide", Boolean(layout && layout.channels > 3));
-  fill($("heatmaps"), ...cards);
+  // λ 0: every task reward is the baseline, so the cards below are one picture; said once, above them.
+  const same =
+    job && job.shrinkage === 0 && rewards.tasks.length
+      ? el("p", { class: "lambda-note", "data-role": "all-baseline" }, "λ 0: the fit kept no deviation from the baseline (config shrink_deviations), so every task's reward below is the baseline itself.")
+      : null;
+  fill($("heatmaps"), same, ...cards);
 }
 
 // Fetch a picture with the key and show it from a blob: URL, kept with the view's others until released.
@@ -1033,7 +1041,8 @@ function renderAgreement(agreement) {
     { class: `agreement ${agreement.verdict}`, "data-role": "agreement", "data-verdict": agreement.verdict },
     el("strong", {}, headline),
     " ",
-    agreement.detail,
+    // The API's detail may open with the same sentence: it is said once.
+    agreement.detail.startsWith(headline) ? agreement.detail.slice(headline.length).trim() : agreement.detail,
   );
 }
 
