@@ -274,7 +274,9 @@ def test_each_column_of_the_session_comparison_has_one_number_format(
     small = comparison["directions"][0]["deviation_diff"]
     small |= {"mean": -6.11e-4, "low": -1.2e-3, "high": 2.5e-4}
     comparison["directions"][1]["deviation_diff"] |= {"mean": 0.0312, "low": 0.011, "high": 0.052}
-    comparison["directions"][2]["deviation_diff"] |= {"mean": -1e-9}
+    # A mean of -0, and an interval below 0 by less than the column shows: printed [-0.013, 0.000], so not
+    # marked as leaving out 0.
+    comparison["directions"][2]["deviation_diff"] |= {"mean": -1e-9, "low": -0.013, "high": -1.6e-4}
 
     def answer(route: Route) -> None:
         if "format=png" in route.request.url:
@@ -297,6 +299,11 @@ def test_each_column_of_the_session_comparison_has_one_number_format(
         "0.031",
         "0.000",
     ]
+    marked = page.locator("#comparison tbody tr").evaluate_all(
+        f"rows => rows.map(r => r.children[{columns.index('Δ deviation')}].className)"
+    )
+    assert marked[1] == "num pos clear" and marked[2] == "num "
+    assert rows[2][columns.index("Δ deviation")].split("\n")[1] == "[-0.013, 0.000]"
     for k in range(2, len(columns)):  # every column: one number of decimals throughout, no exponents
         numbers = [
             n for row in rows for n in row[k].replace("[", " ").replace("]", " ").replace(",", " ").split()

@@ -886,8 +886,10 @@ function unavailable(error) {
 }
 
 // Whether a 95 % interval leaves out 0 (null bounds: one repetition, no interval).
-function clearOfZero(v) {
-  return v.low !== null && v.high !== null && (v.low > 0 || v.high < 0);
+function clearOfZero(v, format) {
+  // Judged on the bounds as printed: an interval shown as [-0.013, 0.000] is not marked as leaving out 0.
+  if (v.low === null || v.high === null) return false;
+  return Number(format(v.low)) > 0 || Number(format(v.high)) < 0;
 }
 
 // A mean with its 95 % interval below it (none with a single repetition), in its column's format.
@@ -1107,7 +1109,8 @@ function renderDifferences(c) {
           el("td", { class: "num" }, `${d.n_a}, ${d.n_b}`),
           DESCRIPTORS.map(([key]) => {
             const v = d[`${key}_diff`];
-            return intervalCell(v, clearOfZero(v) ? (v.mean > 0 ? "pos clear" : "neg clear") : "", formats[`${key}_diff`]);
+            const format = formats[`${key}_diff`];
+            return intervalCell(v, clearOfZero(v, format) ? (v.mean > 0 ? "pos clear" : "neg clear") : "", format);
           }),
         ),
       ),
