@@ -236,7 +236,8 @@ def test_dashboard_follows_a_real_job_from_queued_to_succeeded_and_shows_its_rew
     kinds = page.locator("#heatmaps figure").evaluate_all("fs => fs.map(f => f.dataset.rewardKind)")
     assert kinds == ["baseline", "task", "task"]
     assert page.locator("#heatmaps img").first.evaluate("img => img.src.startsWith('blob:')")
-    assert page.locator("#matrix tbody td").count() == 9
+    # The matrix comes on its own request, after the heatmaps may already show.
+    page.wait_for_function("() => document.querySelectorAll('#matrix tbody td').length === 9")
     assert page.locator("#matrix thead th").all_inner_texts()[1:] == ["baseline", "top right", "top left"]
     page.wait_for_function("() => document.querySelectorAll('#key-states tbody tr').length === 10")
     page.screenshot(path=ARTIFACTS / "2-results.png")
