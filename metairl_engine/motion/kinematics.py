@@ -259,26 +259,37 @@ LABELS = {
 
 
 def comparison_png(
-    comparison: dict[str, Any], *, names: tuple[str, str] = ("a", "b"), units: str = "", dpi: int = 100
+    comparison: dict[str, Any],
+    *,
+    names: tuple[str, str] = ("a", "b"),
+    units: str = "",
+    time_unit: str = "s",
+    dpi: int = 100,
 ) -> bytes:
     """`comparison_figure` as PNG bytes."""
     import io
 
     buffer = io.BytesIO()
-    comparison_figure(comparison, names=names, units=units, dpi=dpi).savefig(
+    comparison_figure(comparison, names=names, units=units, time_unit=time_unit, dpi=dpi).savefig(
         buffer, format="png", bbox_inches="tight"
     )
     return buffer.getvalue()
 
 
 def comparison_figure(
-    comparison: dict[str, Any], *, names: tuple[str, str] = ("a", "b"), units: str = "", dpi: int = 100
+    comparison: dict[str, Any],
+    *,
+    names: tuple[str, str] = ("a", "b"),
+    units: str = "",
+    time_unit: str = "s",
+    dpi: int = 100,
 ) -> Figure:
     """One figure of a `compare` result: peak reach per direction of both sides on a polar plot (bands: 95 %
     intervals), then one panel per descriptor with b − a per direction and its interval, red where the
     interval excludes 0; under it, each side's verdict on its learned readout (``learned.<side>.agreement``)
-    where the comparison carries one. matplotlib is imported here only, and drawn on an Agg canvas without pyplot (no global
-    backend, safe in a server thread)."""
+    where the comparison carries one. ``units``: the lengths' unit ("": none stated); ``time_unit``: the
+    times'. matplotlib is imported here only, and drawn on an Agg canvas without pyplot (no global backend,
+    safe in a server thread)."""
     import textwrap
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -288,7 +299,8 @@ def comparison_figure(
     unit = f" ({units})" if units else ""
     fig = Figure(figsize=(15, 4.2), dpi=dpi)
     FigureCanvasAgg(fig)
-    grid = fig.add_gridspec(1, 6, width_ratios=[1.6, 1, 1, 1, 1, 1], wspace=0.45)
+    # An empty column after the polar plot: its direction labels would run into the first panel's.
+    grid = fig.add_gridspec(1, 7, width_ratios=[1.6, 0.3, 1, 1, 1, 1, 1], wspace=0.45)
     polar = fig.add_subplot(grid[0, 0], projection="polar")
     assert isinstance(polar, PolarAxes)
     for side, name, colour in (("a", names[0], "tab:blue"), ("b", names[1], "tab:orange")):
@@ -314,7 +326,7 @@ def comparison_figure(
     rows = comparison["directions"]
     ypos = np.arange(len(rows))[::-1]
     for k, d in enumerate(DESCRIPTORS):
-        ax = fig.add_subplot(grid[0, k + 1])
+        ax = fig.add_subplot(grid[0, k + 2])
         for yk, row in zip(ypos, rows, strict=True):
             diff = row[f"{d}_diff"]
             clear = diff["low"] is not None and (diff["low"] > 0 or diff["high"] < 0)
@@ -337,9 +349,18 @@ def comparison_figure(
         left, right = ax.get_xlim()
         ax.set_xlim(min(left, -floor), max(right, floor))
         ax.set_yticks(ypos, [r["direction"] for r in rows] if k == 0 else [""] * len(rows), fontsize=8)
-        what = " (s)" if d == "time_to_peak_s" else unit if d in LENGTHS else f" ({units}/s)" if units else ""
+        what = (
+            f" ({time_unit})"
+            if d == "time_to_peak_s"
+            else unit
+            if d in LENGTHS
+            else f" ({units} / {time_unit})"
+            if units
+            else ""
+        )
         ax.set_title(f"{LABELS[d]}{what}", fontsize=9)
         ax.tick_params(axis="x", labelsize=7)
+        ax.locator_params(axis="x", nbins=4)  # five ticks' labels of a narrow panel run together
     # Once for the five difference panels (in each panel's title, long session names ran into each other).
     fig.text(
         0.62,

@@ -119,11 +119,15 @@ def motion_comparison(session: Session, a: Demonstrator, b: Demonstrator) -> dic
 
 
 def comparison_figure(comparison: dict[str, Any]) -> bytes:
-    """The comparison as one PNG: peak reach per direction of both sides, then b − a per descriptor."""
+    """The comparison as one PNG: peak reach per direction of both sides, then b − a per descriptor, each
+    axis in the units the JSON states (`descriptor_units`: lengths in ``unit`` or as uploaded, times in the
+    recordings' own units of t)."""
     names = (comparison["a"]["name"] or "a", comparison["b"]["name"] or "b")
     if names[0] == names[1]:
         names = (f"{names[0]} (a)", f"{names[1]} (b)")
-    return comparison_png(comparison, names=names)
+    return comparison_png(
+        comparison, names=names, units=comparison["unit"] or "x, y units", time_unit="t units"
+    )
 
 
 def latest_succeeded_job(session: Session, demonstrator: Demonstrator) -> Job | None:

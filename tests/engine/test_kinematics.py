@@ -135,6 +135,26 @@ def test_comparison_figure_is_a_png(controller_comparison: dict) -> None:
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
 
 
+def test_comparison_figure_titles_state_each_descriptors_unit(controller_comparison: dict) -> None:
+    figure = comparison_figure(controller_comparison, units="mm", time_unit="t units")
+    titles = {ax.get_title() for ax in figure.axes}
+    assert {
+        "peak reach (mm)",
+        "path length (mm)",
+        "deviation from the line (mm)",
+        "time to peak (t units)",
+        "mean speed (mm / t units)",
+    } <= titles
+
+
+def test_the_polar_plots_labels_stay_clear_of_the_first_panels(controller_comparison: dict) -> None:
+    figure = comparison_figure(controller_comparison, names=("unstimulated", "stimulated"))
+    renderer = figure.canvas.get_renderer()  # type: ignore[attr-defined]
+    polar, first = (ax.get_tightbbox(renderer) for ax in figure.axes[:2])
+    assert polar is not None and first is not None
+    assert polar.x1 < first.x0
+
+
 def test_a_difference_panel_spans_a_twentieth_of_its_descriptor_when_the_differences_are_rounding(
     controller_comparison: dict,
 ) -> None:
