@@ -104,12 +104,11 @@ def delete_demonstrator(session: Session, demonstrator: Demonstrator) -> None:
 
 def delete_mdp(session: Session, mdp: Mdp) -> None:
     """Delete an MDP and its arrays; 409 while a task or recording still uses it."""
-    users = list(session.execute(select(Task.id).where(Task.mdp_id == mdp.id).limit(6)).scalars())
-    users += list(session.execute(select(Recording.id).where(Recording.mdp_id == mdp.id).limit(6)).scalars())
+    users = _mdp_users(session, mdp.id, limit=6)
     if users:
-        shown = ", ".join(users[:5]) + (", …" if len(users) > 5 else "")
+        shown = "; ".join(users[:5]) + ("; …" if len(users) > 5 else "")
         raise Conflict(
-            f"MDP {mdp.id} is still used by {shown}; delete those tasks or recordings (or their "
+            f"MDP {mdp.id} is still used by {shown}. Delete those tasks or recordings (or their "
             "demonstrator) first."
         )
     blobs = list(mdp.array_blobs.values())
@@ -117,6 +116,25 @@ def delete_mdp(session: Session, mdp: Mdp) -> None:
     forget_requests(session, [mdp.id])
     session.flush()
     _delete_unreferenced_blobs(session, blobs, lab_id=mdp.lab_id)
+
+
+def _mdp_users(session: Session, mdp_id: str, *, limit: int) -> list[str]:
+    """Up to ``limit`` tasks, then recordings, on the MDP, each as a lab reads it: its kind, name and id, and
+    its demonstrator's name (ids alone say nothing on a dashboard)."""
+    users: list[str] = []
+    for kind, model in (("task", Task), ("recording", Recording)):
+        rows = session.execute(
+            select(model.id, model.name, Demonstrator.name)
+            .join(Demonstrator, Demonstrator.id == model.demonstrator_id)
+            .where(model.mdp_id == mdp_id)
+            .order_by(model.created_at, model.id)
+            .limit(limit - len(users))
+        ).all()
+        users += [
+            f"{kind} {repr(name) + ' ' if name else ''}({row_id}) of demonstrator {demonstrator!r}"
+            for row_id, name, demonstrator in rows
+        ]
+    return users
 
 
 def _jobs_of(session: Session, demonstrator_id: str) -> list[Job]:

@@ -20,7 +20,15 @@ from service.settings import Settings
 from service.store.models import Base
 from service.store.models.jobs import Job
 from service.store.models.webhooks import WebhookDelivery
-from tests.service.helpers import PUBLIC_HOOK, add_demonstrations, created, fitted_job, make_mdp, make_task
+from tests.service.helpers import (
+    PUBLIC_HOOK,
+    add_demonstrations,
+    created,
+    fitted_job,
+    make_demonstrator,
+    make_mdp,
+    make_task,
+)
 
 RIGHT = [{"states": [0, 1, 2], "actions": [1, 1]}]
 LEFT = [{"states": [2, 1, 0], "actions": [0, 0]}]
@@ -114,6 +122,19 @@ def test_deleting_a_demonstrator_then_its_mdps_leaves_no_row_and_no_blob(
         assert client.get(f"/v1/mdps/{mdp_id}", headers=auth).status_code == 404
     assert row_counts(app) == before
     assert client.delete(f"/v1/demonstrators/{dem_id}", headers=auth).status_code == 404
+
+
+def test_an_mdp_in_use_is_refused_naming_its_tasks_and_recordings_as_a_lab_knows_them(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    dem = make_demonstrator(client, auth, name="patient 7")
+    recording = upload_recording(client, auth, dem["id"])
+    response = client.delete(f"/v1/mdps/{recording['mdp_id']}", headers=auth)
+    assert response.status_code == 409, response.text
+    detail = response.json()["detail"]
+    tasks = client.get(f"/v1/demonstrators/{dem['id']}/tasks", headers=auth).json()["data"]
+    assert f"task 'forward' ({tasks[0]['id']}) of demonstrator 'patient 7'" in detail
+    assert f"recording ({recording['id']}) of demonstrator 'patient 7'" in detail
 
 
 def test_a_queued_or_running_job_blocks_deleting_it_and_its_inputs(
