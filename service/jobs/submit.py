@@ -6,13 +6,14 @@ for reasons no request check can foresee.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import TypeVar
 
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from metairl_engine.config import baseline_column_issues
-from metairl_engine.errors import Issue, check
+from metairl_engine.errors import InvalidInput, Issue, check
 from metairl_engine.grids import input_columns
 from metairl_engine.mdp import Layout
 from service.domain.job_config import fit_config
@@ -31,16 +32,20 @@ from service.store.models.mdps import Mdp
 def create_job(session: Session, *, lab_id: str, body: JobIn, settings: Settings) -> Job:
     """Validate the submission and add the queued job (flushed; the caller commits before sending its message);
     raises `InvalidInput` naming fields, or a 422 naming the size limit (`service.sizes`) a job would exceed."""
-    config = fit_config(body.config)
-    check_hidden(config.hidden, settings)
-    tasks, pointers = _tasks(session, lab_id, body)
-    first = _check_tasks(session, tasks, pointers, settings)
-    layout = Layout(**first.layout) if first.layout else None
-    check(
-        baseline_column_issues(
+    issues: list[Issue] = []  # the config's and the tasks' problems reported together, in one 422
+    config = _gathering(issues, lambda: fit_config(body.config))
+    if config is not None:
+        check_hidden(config.hidden, settings)
+    chosen = _gathering(issues, lambda: _tasks(session, lab_id, body))
+    first = None if chosen is None else _gathering(issues, lambda: _check_tasks(session, *chosen, settings))
+    if config is not None and first is not None:
+        layout = Layout(**first.layout) if first.layout else None
+        issues += baseline_column_issues(
             config, n_columns=input_columns(first.n_features, layout, config.tabular_inputs)
         )
-    )
+    check(issues)
+    assert config is not None and chosen is not None  # else check raised
+    tasks = chosen[0]
     now = utcnow()
     job = Job(
         id=new_id("job"),
@@ -64,6 +69,19 @@ def create_job(session: Session, *, lab_id: str, body: JobIn, settings: Settings
     )
     session.flush()
     return job
+
+
+T = TypeVar("T")
+
+
+def _gathering(issues: list[Issue], stage: Callable[[], T]) -> T | None:
+    """``stage()``, or None with its `InvalidInput`'s issues added to ``issues``: a later stage still runs, so
+    a submission's problems come in one answer rather than one stage at a time."""
+    try:
+        return stage()
+    except InvalidInput as exc:
+        issues.extend(exc.issues)
+        return None
 
 
 def _tasks(session: Session, lab_id: str, body: JobIn) -> tuple[list[Task], list[str]]:

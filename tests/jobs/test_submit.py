@@ -86,6 +86,18 @@ def test_tasks_must_belong_to_the_demonstrator_and_appear_once(
     ]
 
 
+def test_a_bad_setting_and_a_bad_task_come_in_one_answer(client: TestClient, auth: dict[str, str]) -> None:
+    demonstrator_id, task_ids = demonstrated_tasks(client, auth, 1)
+    body = {
+        "demonstrator_id": demonstrator_id,
+        "task_ids": [task_ids[0], "task_nope"],
+        "config": {"baseline_features": [0, 0]},  # passes the schema, not the engine's check
+    }
+    response = client.post("/v1/jobs", json=body, headers=auth)
+    assert response.status_code == 422, response.text
+    assert pointers(response) == ["/config/baseline_features", "/task_ids/1"]
+
+
 def test_every_task_needs_demonstrations(client: TestClient, auth: dict[str, str]) -> None:
     demonstrator_id, task_ids = demonstrated_tasks(client, auth, 1)
     bare = make_task(client, auth, demonstrator_id=demonstrator_id)["id"]
