@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 import httpx
 import pytest
+from matplotlib.colors import to_rgb
 
 from service.jobs.webhooks import sign
 from tests.served import Served, metairl_serve
@@ -151,9 +152,9 @@ def test_dashboard_reads_out_a_sessions_motion_beside_its_learned_rewards_and_co
     assert page.locator("#comparison caption").inner_text().startswith("P1 stimulated − P1 unstimulated")
     assert directions(page, "#comparison") == [d["direction"] for d in comparison["directions"]]
     gain = page.locator("#comparison tr[data-direction='left'] td").nth(1)
-    assert gain.get_attribute("class") == "num pos clear"  # 3 cm more reach, the interval above 0
+    assert gain.get_attribute("class") == "num diff pos clear"  # 3 cm more reach, the interval above 0
     diff = next(d for d in comparison["directions"] if d["direction"] == "left")["peak_reach_diff"]
-    assert gain.inner_text().split("\n")[0] == f"{diff['mean']:.3f}"
+    assert abs(float(gain.inner_text().split("\n")[0]) - diff["mean"]) < 5e-4
     overflow = page.evaluate(
         "() => document.documentElement.scrollWidth - document.documentElement.clientWidth"
     )
@@ -180,7 +181,7 @@ def test_dashboard_reads_out_a_sessions_motion_beside_its_learned_rewards_and_co
     page.wait_for_selector("#comparison caption:has-text('P1 unstimulated − P1 stimulated')")
     assert page.locator("#compare-with").input_value() == before
     loss = page.locator("#comparison tr[data-direction='left'] td").nth(1)
-    assert loss.get_attribute("class") == "num neg clear"
+    assert loss.get_attribute("class") == "num diff neg clear"
     page.wait_for_selector("#learned :text('No job on this demonstrator has succeeded yet')")
     assert page.locator(f".dem[data-demonstrator='{before}']").get_attribute("class") == "dem"
     assert errors == []
@@ -263,53 +264,149 @@ def test_learned_readout_prints_nothing_but_its_parts_under_the_verdict(
     assert errors == []
 
 
-def test_each_column_of_the_session_comparison_has_one_number_format(
+def comparison_table(page: Page) -> tuple[list[str], list[list[str]], list[str]]:
+    """The session comparison's columns (a descriptor's by its key), its rows' cell texts, and its column
+    heads' texts."""
+    head = page.locator("#comparison thead th")
+    columns: list[str] = head.evaluate_all("ths => ths.map(t => t.dataset.key || t.innerText)")
+    rows: list[list[str]] = page.locator("#comparison tbody tr").evaluate_all(
+        "rows => rows.map(r => [...r.children].map(c => c.innerText))"
+    )
+    return columns, rows, head.all_inner_texts()
+
+
+def rgb(colour: str) -> str:
+    """A matplotlib colour as the browser computes a CSS colour: ``rgb(r, g, b)``."""
+    r, g, b = (round(255 * c) for c in to_rgb(colour))
+    return f"rgb({r}, {g}, {b})"
+
+
+def test_the_session_comparison_shows_sub_millimetre_differences_with_units_in_the_figures_colours(
     served: Served, browser: Browser
 ) -> None:
     http = httpx.Client(base_url=served.url, headers={"Authorization": f"Bearer {served.key}"}, timeout=60)
     a = recorded(http, "P7 unstimulated", UNSTIMULATED)
     b = recorded(http, "P7 stimulated", STIMULATED, seed=1)
     comparison = ok(http.post("/v1/motion-comparisons", json={"a": a, "b": b}), 200)
-    # One direction's deviation barely changes (below 0.001), the others by centimetres; a mean of -0 too.
-    small = comparison["directions"][0]["deviation_diff"]
-    small |= {"mean": -6.11e-4, "low": -1.2e-3, "high": 2.5e-4}
+    assert comparison["unit"] is None  # uploaded without `units`: lengths as uploaded
+    # One direction's deviation changes by 0.6 mm of a metre, another by centimetres; a mean of -0, and an
+    # interval whose upper end is rounding noise (so it is not marked as leaving out 0).
+    comparison["directions"][0]["deviation_diff"] |= {"mean": -6.11e-4, "low": -1.2e-3, "high": 2.5e-4}
     comparison["directions"][1]["deviation_diff"] |= {"mean": 0.0312, "low": 0.011, "high": 0.052}
-    # A mean of -0, and an interval below 0 by less than the column shows: printed [-0.013, 0.000], so not
-    # marked as leaving out 0.
-    comparison["directions"][2]["deviation_diff"] |= {"mean": -1e-9, "low": -0.013, "high": -1.6e-4}
+    comparison["directions"][2]["deviation_diff"] |= {"mean": -1e-9, "low": -0.013, "high": -1e-9}
+    comparison["directions"][0]["peak_reach_diff"] |= {
+        "mean": -0.02,
+        "low": -0.03,
+        "high": -0.01,
+    }  # less reach
+    answer_with: dict[str, str | None] = {"unit": None}
 
     def answer(route: Route) -> None:
         if "format=png" in route.request.url:
             route.continue_()
-        else:
-            route.fulfill(status=200, json=comparison)
+            return
+        body = json.loads(json.dumps(comparison))
+        if answer_with["unit"] == "m":  # the same recordings uploaded with `units` m
+            body["unit"] = "m"
+            body["units"] |= {"peak_reach": "m", "path_length": "m", "deviation": "m"}
+            body["units"]["mean_speed"] = "m per t unit"
+        route.fulfill(status=200, json=body)
 
     page, errors = open_dashboard(browser, served.url, served.key)
     page.route(lambda url: url.split("?")[0].endswith("/v1/motion-comparisons"), answer)
     page.click(f".dem[data-demonstrator='{a}'] [data-action='motion']")
     page.select_option("#compare-with", b)
     page.wait_for_selector(f"#comparison[data-b='{b}'] caption:has-text('P7 stimulated − P7 unstimulated')")
-    columns = page.locator("#comparison thead th").all_inner_texts()
-    rows = page.locator("#comparison tbody tr").evaluate_all(
-        "rows => rows.map(r => [...r.children].map(c => c.innerText))"
-    )
-    # The means of Δ deviation, at the column's scale (millimetres of metres), no "-0.000".
-    assert [row[columns.index("Δ deviation")].split("\n")[0] for row in rows[:3]] == [
-        "-0.001",
-        "0.031",
-        "0.000",
-    ]
+    columns, rows, heads = comparison_table(page)
+    deviation = columns.index("deviation")
+    assert heads[deviation] == "Δ deviation\n(x, y units)"
+    # Without a unit: decimals enough for the smallest difference that is not noise, one format a column.
+    assert [row[deviation].split("\n")[0] for row in rows[:3]] == ["-0.00061", "0.03120", "0.00000"]
+    assert rows[2][deviation].split("\n")[1] == "[-0.01300, 0.00000]"
     marked = page.locator("#comparison tbody tr").evaluate_all(
-        f"rows => rows.map(r => r.children[{columns.index('Δ deviation')}].className)"
+        f"rows => rows.map(r => r.children[{deviation}].className)"
     )
-    assert marked[1] == "num pos clear" and marked[2] == "num "
-    assert rows[2][columns.index("Δ deviation")].split("\n")[1] == "[-0.013, 0.000]"
+    assert marked[:3] == ["num diff", "num diff pos clear", "num diff"]
     for k in range(2, len(columns)):  # every column: one number of decimals throughout, no exponents
         numbers = [
             n for row in rows for n in row[k].replace("[", " ").replace("]", " ").replace(",", " ").split()
         ]
         decimals = {len(n.split(".")[1]) if "." in n else 0 for n in numbers}
         assert len(decimals) == 1 and not any("e" in n for n in numbers), (columns[k], numbers)
+
+    # The figure's colours: red where the interval leaves out 0 (either sign), grey where it holds 0, and
+    # each side's colour beside its name.
+    cells = page.locator(f"#comparison tbody tr td:nth-child({deviation + 1})")
+    colours = cells.evaluate_all("cs => cs.map(c => getComputedStyle(c).color)")
+    assert colours[0] == colours[2] == rgb("0.4") and colours[1] == rgb("tab:red")
+    for side_of_0 in ("pos", "neg"):
+        clear = page.locator(f"#comparison td.{side_of_0}.clear")
+        assert clear.count() > 0, side_of_0
+        assert set(clear.evaluate_all("cs => cs.map(c => getComputedStyle(c).color)")) == {rgb("tab:red")}
+    sides = page.locator("#comparison caption .side i").evaluate_all(
+        "is => is.map(i => [i.parentNode.dataset.side, getComputedStyle(i).backgroundColor])"
+    )
+    assert sorted(sides) == [["a", rgb("tab:blue")], ["b", rgb("tab:orange")]]
+
+    # In metres: lengths under a metre in millimetres, named so; sub-millimetre differences read.
+    answer_with["unit"] = "m"
+    page.click("#refresh")
+    page.wait_for_selector("#comparison thead th[data-key='deviation'] :text('(mm)')")
+    columns, rows, heads = comparison_table(page)
+    assert heads[columns.index("deviation")] == "Δ deviation\n(mm)"
+    assert heads[columns.index("mean_speed")] == "Δ mean speed\n(mm per t unit)"
+    assert heads[columns.index("time_to_peak_s")].startswith("Δ time to peak\n(")
+    assert "mm" not in heads[columns.index("time_to_peak_s")]
+    assert [row[deviation].split("\n")[0] for row in rows[:3]] == ["-0.61", "31.20", "0.00"]
+    assert rows[0][deviation].split("\n")[1] == "[-1.20, 0.25]"
+    assert errors == []
+
+
+def test_a_late_answer_for_a_session_no_longer_picked_is_never_shown(
+    served: Served, browser: Browser
+) -> None:
+    http = httpx.Client(base_url=served.url, headers={"Authorization": f"Bearer {served.key}"}, timeout=60)
+    a = recorded(http, "P8 unstimulated", UNSTIMULATED)
+    left_behind = recorded(http, "P8 stimulated", STIMULATED, seed=1)
+    picked = recorded(http, "P8 follow-up", STIMULATED, seed=2)
+    held: list[Route] = []
+
+    def hold(route: Route) -> None:
+        """The comparison with ``left_behind`` waits for the test; the others are answered."""
+        body = json.loads(route.request.post_data or "{}")
+        if "format=png" not in route.request.url and body.get("b") == left_behind:
+            held.append(route)
+        else:
+            route.continue_()
+
+    page, errors = open_dashboard(browser, served.url, served.key)
+    page.route(lambda url: url.split("?")[0].endswith("/v1/motion-comparisons"), hold)
+    aborted: list[str] = []
+    page.on("requestfailed", lambda request: aborted.append(request.post_data or ""))
+    page.click(f".dem[data-demonstrator='{a}'] [data-action='motion']")
+    page.wait_for_selector(f"#motion[data-demonstrator='{a}'] #kinematics tbody tr")
+    page.select_option("#compare-with", left_behind)
+    while not held:
+        page.wait_for_timeout(50)
+    page.select_option("#compare-with", picked)
+    page.wait_for_selector(
+        f"#comparison[data-b='{picked}'] caption:has-text('P8 follow-up − P8 unstimulated')"
+    )
+    # The page gave up the earlier request once the pick changed.
+    deadline = time.monotonic() + 30
+    while not any(left_behind in body for body in aborted):
+        assert time.monotonic() < deadline, aborted
+        page.wait_for_timeout(50)
+    from playwright.sync_api import Error as PlaywrightError
+
+    # The earlier pick's answer comes late, and it is an error: nothing of it shows.
+    with contextlib.suppress(PlaywrightError):  # the page may have aborted the request already
+        held[0].fulfill(status=404, json={"title": "Not Found", "detail": "answered after the pick changed"})
+    page.wait_for_timeout(1000)
+    assert page.locator("#message").is_hidden(), page.locator("#message").inner_text()
+    assert "after the pick changed" not in page.locator("#motion").inner_text()
+    assert page.locator("#comparison caption").inner_text().startswith("P8 follow-up − P8 unstimulated")
+    assert page.locator("#comparison").get_attribute("data-b") == picked
     assert errors == []
 
 

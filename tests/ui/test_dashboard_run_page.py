@@ -119,6 +119,19 @@ def test_run_page_draws_the_loss_curve_settings_best_step_shrinkage_and_sparsity
     assert {"loss", "irl_loss", "sharing_loss"} <= set(series)
     assert curve.locator("path[data-series='loss']").evaluate("p => p.getTotalLength()") > 100
     assert curve.locator("[data-role='best-step']").count() == 1
+    # Both axes named, a tick mark at each of their numbers; the y axis's name left of its numbers.
+    assert curve.locator("[data-role='y-label']").text_content() == "loss"
+    assert curve.locator("[data-role='x-label']").text_content() == "step"
+    for axis in ("x", "y"):
+        marks = curve.locator(f"line.tick-mark[data-axis='{axis}']").count()
+        numbers = curve.locator(f"text.tick[data-axis='{axis}']").count()
+        assert marks == numbers >= 3, (axis, marks, numbers)
+    label = curve.locator("[data-role='y-label']").bounding_box()
+    lefts = curve.locator("text.tick[data-axis='y']").evaluate_all(
+        "ts => ts.map(t => t.getBoundingClientRect().left)"
+    )
+    assert label is not None and label["x"] + label["width"] <= min(lefts)
+    assert label["height"] > label["width"]  # turned to run along the axis
     shrinkage = job["shrinkage"]
     assert page.locator("#run-facts [data-role='shrinkage']").inner_text() == (
         f"λ {shrinkage:g} ({PULLED[shrinkage]})"
@@ -371,11 +384,32 @@ def test_the_lightbox_draws_one_channel_of_a_reward_at_full_size(demo: Demo, bro
     page.locator("#heatmaps img[data-reward]").nth(1).click()
     buttons = page.locator("#lightbox-channels button").evaluate_all("bs => bs.map(b => b.dataset.channel)")
     assert buttons == ["all", "0", "1"]
+    held: list[Route] = []
+    page.route(
+        lambda url: f"/v1/rewards/{task['reward_id']}?format=json" in url, lambda route: held.append(route)
+    )
     page.click(f"#lightbox-channels button[data-channel='{channel}']")
+    while not held:
+        page.wait_for_timeout(50)
+    assert page.locator("#lightbox-loading").is_visible()  # a sign while the values come
+    held[0].continue_()
     canvas = page.locator(f"#lightbox-canvas[data-channel='{channel}']")
     canvas.wait_for()
+    page.wait_for_selector("#lightbox-loading", state="hidden")
     size = canvas.evaluate("c => [c.width, c.height]")
     assert size[0] * 2 == size[1] * 3 and size[0] >= 300  # 3×2 cells, enlarged
+    # Its axes: named x and y as the server's heatmaps name them, each cell numbered at its centre, y up.
+    assert page.locator(".channel-plot [data-role='x-label']").inner_text() == "x"
+    assert page.locator(".channel-plot [data-role='y-label']").inner_text() == "y"
+    assert page.locator("#lightbox-x-ticks span").all_inner_texts() == ["0", "1", "2"]
+    assert page.locator("#lightbox-y-ticks span").all_inner_texts() == ["1", "0"]
+    box = canvas.bounding_box()
+    first = page.locator("#lightbox-x-ticks span").first.bounding_box()
+    bottom = page.locator("#lightbox-y-ticks span").last.bounding_box()
+    assert box is not None and first is not None and bottom is not None
+    cell = box["width"] / 3
+    assert abs(first["x"] + first["width"] / 2 - (box["x"] + cell / 2)) <= 1
+    assert abs(bottom["y"] + bottom["height"] / 2 - (box["y"] + box["height"] - cell / 2)) <= 1
     colour = canvas.evaluate(
         "(c, [x, y]) => { const cell = c.width / 3;"
         " return [...c.getContext('2d').getImageData((x + .5) * cell, (1 - y + .5) * cell, 1, 1).data].slice(0, 3); }",
@@ -707,4 +741,145 @@ def test_the_job_form_takes_yes_no_settings_from_a_list_and_a_list_setting_as_nu
     page.wait_for_selector("#submit-error:has-text('held by the test')")
     config = sent[0]["config"]
     assert config == {"tabular_choice": False, "hidden": [8, 8], "baseline_features": [0, 1]}, config
+    assert errors == []
+
+
+def sideways_overflow(page: Page) -> int:
+    """How many pixels the page is wider than the window (0 or less: no sideways scrolling)."""
+    overflow: int = page.evaluate("() => document.scrollingElement.scrollWidth - window.innerWidth")
+    return overflow
+
+
+def test_the_page_fits_1024_and_1280_pixels_wide_and_the_job_list_scrolls_in_its_own_box(
+    demo: Demo, browser: Browser, recorded_job: str
+) -> None:
+    page, errors = dashboard(browser, demo)
+    # Every panel open: a velocity grid's wide heatmaps, its run page, its motion readout, the job form's
+    # settings, and the whole job list.
+    open_results(page, demo, recorded_job)
+    heatmaps_loaded(page, 4)
+    page.locator(f"tr[data-job='{recorded_job}'] [data-action='run']").click()
+    page.wait_for_selector(f"#run[data-job='{recorded_job}'] #loss-curve svg")
+    session = ok(demo.http.get(f"/v1/jobs/{recorded_job}"), 200)["demonstrator_id"]
+    page.click(f".dem[data-demonstrator='{session}'] [data-action='motion']")
+    page.wait_for_selector(f"#motion[data-demonstrator='{session}'] #kinematics tbody tr")
+    page.click("#submit-settings summary")
+    page.select_option("#filter-demonstrator", "")
+    page.wait_for_function("() => document.querySelectorAll('#jobs tr[data-job]').length > 1")
+    for width in (1024, 1280, 1366):
+        page.set_viewport_size({"width": width, "height": 800})
+        page.wait_for_timeout(300)
+        assert sideways_overflow(page) <= 0, f"the page scrolls sideways at {width} px"
+        # The job list keeps to its panel, every column in sight: its box needs no scrolling sideways.
+        panel, box = page.evaluate(
+            "() => [document.querySelector('.jobs'), document.querySelector('.jobs .scroll')]"
+            ".map(n => n.getBoundingClientRect().right)"
+        )
+        assert box <= panel, (width, box, panel)
+        room = page.evaluate(
+            "() => { const b = document.querySelector('.jobs .scroll'); return b.scrollWidth - b.clientWidth; }"
+        )
+        assert room <= 0, f"the job list scrolls sideways at {width} px"
+        # The velocity grid's wide heatmaps: two a row from 1280 px, each wide enough to read.
+        cards = page.locator("#heatmaps figure img[data-reward]").evaluate_all(
+            "imgs => imgs.map(i => { const r = i.getBoundingClientRect(); return [Math.round(r.top), r.width]; })"
+        )
+        if width >= 1280:
+            assert cards[0][0] == cards[1][0], (width, cards)
+        assert min(w for _, w in cards) >= 540, (width, cards)
+        page.screenshot(path=ARTIFACTS / f"layout-{width}.png", full_page=True)
+    assert errors == []
+
+
+def test_every_setting_of_the_job_form_shows_its_whole_name(demo: Demo, browser: Browser) -> None:
+    page, errors = dashboard(browser, demo)
+    page.click("#submit-settings summary")
+    names = page.locator("#submit-config .config-field")
+    names.first.wait_for()
+    for width in (1024, 1280, 1366):
+        page.set_viewport_size({"width": width, "height": 800})
+        page.wait_for_timeout(200)
+        clipped = names.evaluate_all(
+            "fs => fs.filter(f => { const s = f.querySelector('span');"
+            " return s.scrollWidth > s.clientWidth || s.getBoundingClientRect().right > f.getBoundingClientRect().right + 0.5; })"
+            ".map(f => f.dataset.setting)"
+        )
+        assert clipped == [], (width, clipped)
+    longest = max(JobConfig.model_fields, key=len)
+    field = page.locator(f"#submit-config [data-setting='{longest}'] span")
+    assert field.inner_text().startswith(longest) and field.is_visible()
+    assert errors == []
+
+
+def test_the_comparison_matrix_names_each_reward_whole_and_shows_its_colour_scale_in_the_figures_colours(
+    demo: Demo, browser: Browser
+) -> None:
+    from matplotlib import colormaps
+
+    job_id = demo.ids["sixteen"]  # 17 rewards: the matrix stacked below the heatmaps, its columns narrow
+    matrix = ok(demo.http.get(f"/v1/jobs/{job_id}/comparison-matrix"), 200)
+    names = ["baseline", *DIRECTION_NAMES, *(f"{d} again" for d in DIRECTION_NAMES)]
+    assert len(names) == len(matrix["labels"])
+    matrix["labels"] = names
+    matrix["matrix"][0][1:4] = [-0.9, 0.0, 0.45]
+    page, errors = dashboard(browser, demo)
+    page.route(
+        lambda url: url.split("?")[0].endswith("/comparison-matrix"),
+        lambda route: route.fulfill(status=200, json=matrix),
+    )
+    open_results(page, demo, job_id)
+    page.wait_for_selector("#matrix table")
+    # Every column and row head shows its whole name: nothing cut off, nothing hidden behind an ellipsis.
+    for heads, labels in (("#matrix thead th", ["", *names]), ("#matrix tbody th", names)):
+        shown = page.locator(heads).evaluate_all(
+            "ths => ths.map(t => [t.innerText.replace(/\\s+/g, ' '), t.scrollWidth <= t.clientWidth])"
+        )
+        assert [text for text, _ in shown] == labels
+        assert all(whole for _, whole in shown), [text for text, whole in shown if not whole]
+    # The scale beside the colours: -1 to +1, named.
+    scale = page.locator("#matrix [data-role='matrix-scale']")
+    assert scale.is_visible()
+    assert all(part in scale.inner_text() for part in ("Pearson r", "−1", "+1"))
+    # The cells in the colours of the server's matrix figure (matplotlib's RdBu_r on -1..1).
+    cells = page.locator("#matrix tbody tr").first.locator("td")
+    colours = cells.evaluate_all("cs => cs.slice(0, 4).map(c => getComputedStyle(c).backgroundColor)")
+    for r, colour in zip(matrix["matrix"][0][:4], colours, strict=True):
+        expected = [round(255 * c) for c in colormaps["RdBu_r"]((r + 1) / 2)[:3]]
+        got = [int(n) for n in re.findall(r"\d+", colour)[:3]]
+        assert all(abs(a - b) <= 3 for a, b in zip(got, expected, strict=True)), (r, got, expected)
+    page.locator("#matrix").screenshot(path=ARTIFACTS / "matrix-16-tasks.png")
+    assert errors == []
+
+
+def test_a_rewards_uncertainty_and_evidence_maps_open_full_size_and_close_with_escape_or_a_click(
+    demo: Demo, browser: Browser, recorded_job: str
+) -> None:
+    page, errors = dashboard(browser, demo)
+    open_results(page, demo, recorded_job)
+    heatmaps_loaded(page, 4)
+    page.wait_for_selector("#heatmaps [data-role='placeholder']", state="detached")
+    task = page.locator("#heatmaps figure.task h4").first.inner_text()
+    for quantity, close in (("uncertainty", "Escape"), ("evidence", "click")):
+        small = page.locator(f"#heatmaps figure.task [data-role='{quantity}'] img").first
+        shown = small.bounding_box()
+        small.click()
+        page.wait_for_selector("#lightbox:not([hidden])")
+        page.wait_for_function("() => document.querySelector('#lightbox-img').naturalWidth > 0")
+        assert page.locator("#lightbox-img").get_attribute("src") == small.get_attribute("src")
+        assert page.locator("#lightbox-title").inner_text() == f"{quantity} of {task}"
+        assert page.locator("#lightbox-channels").is_hidden()  # one picture: no channels to pick
+        big = page.locator("#lightbox-img").bounding_box()
+        assert shown is not None and big is not None and big["width"] > shown["width"], (quantity, shown, big)
+        if close == "Escape":
+            page.keyboard.press("Escape")
+        else:
+            page.click("#lightbox-img")
+        page.wait_for_selector("#lightbox", state="hidden")
+    # From the keyboard too, as a heatmap.
+    small = page.locator("#heatmaps figure.task [data-role='evidence'] img").first
+    small.focus()
+    page.keyboard.press("Enter")
+    page.wait_for_selector("#lightbox:not([hidden])")
+    page.keyboard.press("Escape")
+    page.wait_for_selector("#lightbox", state="hidden")
     assert errors == []

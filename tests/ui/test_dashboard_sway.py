@@ -237,3 +237,102 @@ def test_a_trials_picture_waits_behind_a_placeholder_while_the_trial_loads(
         " return img && img.complete && img.naturalWidth > 0 && !img.hidden; }"
     )
     assert errors == []
+
+
+def test_trials_in_metres_show_their_sway_in_millimetres_with_units_and_a_labelled_comparison(
+    served: Served, browser: Browser
+) -> None:
+    http = client(served)
+    dem_id = str(ok(http.post("/v1/demonstrators", json={"name": "sub-millimetre sway"}))["id"])
+    # A warm-up without a label first (left out of the comparison), then two trials per vision, in metres:
+    # the COP wanders by under a millimetre.
+    trials = [
+        ("warm-up", None),
+        ("open 1", "open"),
+        ("open 2", "open"),
+        ("closed 1", "closed"),
+        ("closed 2", "closed"),
+    ]
+    ids = []
+    for k, (name, vision) in enumerate(trials):
+        body = {
+            "protocol": "standing",
+            "name": name,
+            "units": "m",
+            "metadata": {"vision": vision} if vision else {},
+            "samples": standing_trial(k, 0.0004 if vision != "closed" else 0.0006),
+        }
+        ids.append(ok(http.post(f"/v1/demonstrators/{dem_id}/recordings", json=body))["id"])
+    sway = ok(http.get(f"/v1/recordings/{ids[-1]}/sway"), 200)  # the newest: the panel opens on it
+    summary = ok(http.get(f"/v1/demonstrators/{dem_id}/sway-summary?by=vision"), 200)
+    assert sway["units"] == summary["unit"] == "m" and summary["unlabelled"] == [ids[0]]
+    assert sway["descriptors"]["rms_x"] < 1e-3  # sub-millimetre: 0.000 m to three decimals
+
+    page, errors = open_dashboard(browser, served.url, served.key)
+    page.click(f"[data-demonstrator='{dem_id}'] [data-action='sway']")
+    page.wait_for_selector(f"#sway[data-demonstrator='{dem_id}'] .sway-measures tr[data-measure='area95']")
+    measures = page.locator(".sway-measures")
+    assert measures.locator("caption").inner_text().startswith("closed 2")
+    assert measures.locator("thead th").all_inner_texts() == ["measure", "value", "unit"]
+    shown = {
+        key: measures.locator(f"tr[data-measure='{key}'] td").all_inner_texts()
+        for key in ("area95", "rms_x", "mean_velocity", "mean_frequency")
+    }
+    d = sway["descriptors"]
+    assert shown["area95"] == [f"{d['area95'] * 1e6:.3f}", "mm²"]
+    assert shown["rms_x"] == [f"{d['rms_x'] * 1e3:.3f}", "mm"] and float(shown["rms_x"][0]) > 0
+    assert shown["mean_velocity"] == [f"{d['mean_velocity'] * 1e3:.3f}", "mm/s"]
+    assert shown["mean_frequency"] == [f"{d['mean_frequency']:.3f}", "Hz"]
+
+    # The conditions compared: a caption, each measure's unit in its head, the Romberg quotient without one,
+    # and the trial left out for want of the label named under the table.
+    page.wait_for_selector(".sway-groups tr[data-group='romberg']")
+    groups = page.locator(".sway-groups")
+    assert "vision" in groups.locator("caption").inner_text()
+    heads = {
+        m: groups.locator(f"thead th[data-measure='{m}']").inner_text()
+        for m in ("area95", "mean_velocity", "mean_frequency")
+    }
+    assert heads == {
+        "area95": "95 % ellipse area\n(mm²)",
+        "mean_velocity": "mean velocity\n(mm/s)",
+        "mean_frequency": "mean frequency\n(Hz)",
+    }
+    closed = next(g for g in summary["groups"] if g["label"] == "closed")["measures"]["area95"]["value"]
+    cell = groups.locator("tr[data-group='closed'] td").nth(0).inner_text().split("\n")[0]
+    assert cell == f"{closed * 1e6:.3f}"
+    romberg = groups.locator("tr[data-group='romberg'] td").nth(0).inner_text().split("\n")[0]
+    assert romberg == f"{summary['romberg']['area95']['value']:.3f}"  # a ratio: no unit, not scaled
+    assert "no unit" in groups.locator("tr[data-group='romberg'] th").inner_text()
+    assert (
+        page.locator("[data-role='sway-unlabelled']").inner_text()
+        == "Left out, without a “vision” label: warm-up."
+    )
+    page.locator("#sway").scroll_into_view_if_needed()
+    page.screenshot(path=ARTIFACTS / "9-sway-metres.png")
+    assert errors == []
+
+
+def test_a_demonstrators_buttons_go_from_reading_out_to_a_new_job_and_delete_comes_last(
+    served: Served, browser: Browser
+) -> None:
+    http = client(served)
+    dem_id = moving_and_standing(http, "button order")
+    tasks = ok(http.get(f"/v1/demonstrators/{dem_id}/tasks"), 200)["data"]
+    assert tasks  # the recorded movements' directions
+    page, errors = open_dashboard(browser, served.url, served.key)
+    box = page.locator(f".dem[data-demonstrator='{dem_id}']")
+    box.locator(".dem-actions").wait_for()
+    actions = box.locator(".dem-actions button").evaluate_all("bs => bs.map(b => b.dataset.action)")
+    assert actions == ["motion", "sway", "new-job", "delete-demonstrator"]
+    every = box.locator("button").evaluate_all("bs => bs.map(b => b.dataset.action)")
+    assert every[:4] == actions  # under its name, before the task list that may scroll in its box
+
+    box.locator("[data-action='new-job']").click()
+    assert page.locator("#submit-demonstrator").input_value() == dem_id
+    ticked = page.locator("#submit-tasks input[name='task']:checked").evaluate_all(
+        "xs => xs.map(x => x.value)"
+    )
+    assert sorted(ticked) == sorted(t["id"] for t in tasks)
+    assert page.evaluate("() => document.activeElement.id") == "submit-demonstrator"
+    assert errors == []

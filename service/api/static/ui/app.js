@@ -35,6 +35,7 @@ const state = {
   resultsCall: 0, // bumped by each showResults, so an earlier call's late answers never redraw the results
   motionCall: 0, // the same for showMotion
   comparisonCall: 0, // the same for showComparison
+  comparisonAbort: null, // aborts the requests of the comparison shown, once another replaces it
   webhooksCall: 0, // the same for loadWebhooks: an earlier listing never redraws over a later one
   mode: "", // how progress arrives: "stream" or "polling"
   openStreams: 0,
@@ -255,6 +256,8 @@ function hideResults() {
 function hideMotion() {
   state.motionCall += 1;
   state.comparisonCall += 1;
+  state.comparisonAbort?.abort();
+  state.comparisonAbort = null;
   state.motion = null;
   const section = $("motion");
   section.hidden = true;
@@ -343,8 +346,9 @@ function renderDemonstrators() {
       el(
         "div",
         { class: `dem${state.motion === d.id ? " selected" : ""}`, "data-demonstrator": d.id },
-        el("div", { class: "dem-name" }, d.name, " ", deleteButton("demonstrator", d.id, `demonstrator ${d.name} with its tasks, recordings and jobs`)),
+        el("div", { class: "dem-name" }, d.name),
         el("div", { class: "id" }, d.id),
+        demonstratorActions(d), // above the task list, which may scroll in its box
         d.tasks.length
           ? el(
               "ul",
@@ -370,17 +374,38 @@ function renderDemonstrators() {
               d.recordings
                 .map((r) => `${recordingName(r)} (${r.protocol === "standing" ? "standing, " : ""}${r.n_samples} samples, ${fmt(r.duration, 1)} s)`)
                 .join("; "),
-              " ",
-              // The motion readout reads movements only: a demonstrator with standing trials alone has none.
-              hasMovements(d)
-                ? el("button", { class: "small quiet", "data-action": "motion", onclick: () => showMotion(d.id, { scroll: true }) }, "Motion readout")
-                : null,
-              swayButton(d),
             )
           : el("div", { class: "sub" }, "no recordings"),
       ),
     ),
   );
+}
+
+// A demonstrator's buttons in the order of the work: read out what was recorded, fit a job to its tasks, and
+// last, apart, delete it. They come under its name, before its tasks.
+function demonstratorActions(d) {
+  return el(
+    "div",
+    { class: "dem-actions" },
+    // The motion readout reads movements only: a demonstrator with standing trials alone has none.
+    hasMovements(d)
+      ? el("button", { class: "small quiet", "data-action": "motion", onclick: () => showMotion(d.id, { scroll: true }) }, "Motion readout")
+      : null,
+    swayButton(d),
+    d.tasks.length
+      ? el("button", { class: "small quiet", "data-action": "new-job", title: `Fit a job to the tasks of ${d.name}`, onclick: () => newJobFor(d.id) }, "New job")
+      : null,
+    deleteButton("demonstrator", d.id, `demonstrator ${d.name} with its tasks, recordings and jobs`),
+  );
+}
+
+// The job form with the demonstrator picked (every task ticked), scrolled to.
+function newJobFor(id) {
+  const select = $("submit-demonstrator");
+  select.value = id;
+  renderSubmitTasks();
+  select.closest("section").scrollIntoView({ block: "start" });
+  select.focus();
 }
 
 function demonstratorName(id) {
@@ -751,23 +776,14 @@ function renderHeatmaps(rewards, current, job) {
       beside.length ? el("div", { class: "beside-row" }, ...beside) : null,
     );
     if (reward.links.png) {
-      // Opens full size on a click, or from the keyboard (Tab to it, then Enter or Space).
-      const open = () => openLightbox(picture.src, title, layout && layout.channels > 1 ? { reward, layout } : null);
-      picture.classList.add("zoomable");
-      picture.title = "Open full size";
-      picture.tabIndex = 0;
-      picture.setAttribute("role", "button");
-      picture.setAttribute("aria-label", `Open the heatmap of ${title} full size`);
-      picture.addEventListener("click", open);
-      picture.addEventListener("keydown", (event) => {
-        if (event.key !== "Enter" && event.key !== " ") return;
-        event.preventDefault();
-        open();
-      });
+      zoomable(picture, `heatmap of ${title}`, () => openLightbox(picture.src, title, layout && layout.channels > 1 ? { reward, layout } : null));
       loadImage(picture, "results", current, reward.links.png);
     }
     for (const box of beside) {
-      loadImage(box.querySelector("img"), "results", current, reward.links[`${box.dataset.role}_png`]);
+      const img = box.querySelector("img");
+      const what = `${box.dataset.role} of ${title}`;
+      zoomable(img, what, () => openLightbox(img.src, what, null, what));
+      loadImage(img, "results", current, reward.links[`${box.dataset.role}_png`]);
     }
     return card;
   });
@@ -780,6 +796,21 @@ function renderHeatmaps(rewards, current, job) {
       ? el("p", { class: "lambda-note", "data-role": "all-baseline" }, "λ 0: the fit kept no deviation from the baseline (config shrink_deviations), so every task's reward below is the baseline itself.")
       : null;
   fill($("heatmaps"), same, ...cards);
+}
+
+// A picture that opens full size (`open`) on a click, or from the keyboard (Tab to it, then Enter or Space).
+function zoomable(img, what, open) {
+  img.classList.add("zoomable");
+  img.title = "Open full size";
+  img.tabIndex = 0;
+  img.setAttribute("role", "button");
+  img.setAttribute("aria-label", `Open the ${what} full size`);
+  img.addEventListener("click", open);
+  img.addEventListener("keydown", (event) => {
+    if (event.key !== "Enter" && event.key !== " ") return;
+    event.preventDefault();
+    open();
+  });
 }
 
 // Fetch a picture with the key and show it from a blob: URL, kept with the view's others until released.
@@ -804,25 +835,45 @@ async function loadImage(img, view, current, path, options) {
   }
 }
 
-// Diverging colours for a correlation in [-1, 1]: red below 0, blue above.
+// The colours of the server's matrix figure (matplotlib's RdBu_r on -1..1: blue below 0, red above), sampled
+// at r = -1, -0.8, …, 1 and interpolated between.
+const RDBU_R = [[5, 48, 97], [32, 101, 171], [67, 147, 195], [144, 196, 221], [209, 229, 240], [247, 246, 246], [253, 219, 199], [243, 164, 129], [214, 96, 77], [177, 24, 43], [103, 0, 31]];
+
 function correlationColour(r) {
-  const a = Math.min(1, Math.abs(r));
-  return r >= 0 ? `rgba(37, 99, 235, ${0.08 + 0.8 * a})` : `rgba(220, 38, 38, ${0.08 + 0.8 * a})`;
+  if (!Number.isFinite(r)) return "rgb(217, 217, 217)"; // the figure's grey for "n/a"
+  const u = ((Math.min(1, Math.max(-1, r)) + 1) / 2) * (RDBU_R.length - 1);
+  const i = Math.min(RDBU_R.length - 2, Math.floor(u));
+  const [a, b] = [RDBU_R[i], RDBU_R[i + 1]];
+  return `rgb(${a.map((c, k) => Math.round(c + (b[k] - c) * (u - i))).join(", ")})`;
+}
+
+// The matrix's colour scale: a bar from -1 to 1 with its ends and middle named.
+function matrixScale() {
+  const stops = RDBU_R.map((c, i) => `rgb(${c.join(", ")}) ${(100 * i) / (RDBU_R.length - 1)}%`).join(", ");
+  return el(
+    "div",
+    { class: "matrix-scale", "data-role": "matrix-scale" },
+    el("span", { class: "scale-name" }, "Pearson r"),
+    el("span", {}, "−1"),
+    el("i", { style: { backgroundImage: `linear-gradient(to right, ${stops})` }, role: "img", "aria-label": "colour scale: blue at −1, white at 0, red at +1" }),
+    el("span", {}, "+1"),
+    el("span", { class: "scale-note" }, "blue: opposite · white: unrelated · red: alike"),
+  );
 }
 
 function renderMatrix(m) {
-  const head = el("tr", {}, el("th", {}), m.labels.map((label) => el("th", { title: label }, label)));
+  const head = el("tr", {}, el("th", {}), m.labels.map((label) => el("th", { title: label, scope: "col" }, label)));
   const rows = m.matrix.map((row, i) =>
     el(
       "tr",
       {},
-      el("th", { class: "row", title: m.labels[i] }, m.labels[i]),
+      el("th", { class: "row", title: m.labels[i], scope: "row" }, m.labels[i]),
       row.map((r) =>
-        el("td", { class: "num", style: { background: correlationColour(r), color: Math.abs(r) > 0.55 ? "#fff" : "#1f2933" } }, fixed(r, 2)),
+        el("td", { class: "num", style: { background: correlationColour(r), color: Math.abs(r) > 0.6 ? "#fff" : "#1f2933" } }, Number.isFinite(r) ? fixed(r, 2) : "n/a"),
       ),
     ),
   );
-  fill($("matrix"), el("table", { class: "matrix" }, el("thead", {}, head), el("tbody", {}, rows)));
+  fill($("matrix"), el("table", { class: "matrix" }, el("thead", {}, head), el("tbody", {}, rows)), matrixScale());
 }
 
 // Per task, the states where its reward departs most from the baseline; a task whose reward is the
@@ -1060,20 +1111,27 @@ function renderPartners(id) {
   select.disabled = others.length === 0;
 }
 
+// The comparison of the motion readout's demonstrator (a) with the one picked (b). Only the latest call draws:
+// a new pick or a closed readout aborts the requests of the one before, and any answer of theirs that still
+// arrives (an error too) is dropped.
 async function showComparison() {
   const call = ++state.comparisonCall;
+  state.comparisonAbort?.abort();
+  const controller = new AbortController();
+  state.comparisonAbort = controller;
   const current = () => call === state.comparisonCall;
   releaseBlobs("comparison");
   const a = state.motion;
   const b = $("compare-with").value;
   const box = $("comparison");
   if (!a || !b) {
+    delete box.dataset.b;
     fill(box, el("p", { class: "empty" }, "Upload recorded movements for another demonstrator (another session) to compare with."));
     return;
   }
   box.dataset.b = b;
   fill(box, loading());
-  const options = { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify({ a, b }) };
+  const options = { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify({ a, b }), signal: controller.signal };
   try {
     const comparison = await getJson("/v1/motion-comparisons", options);
     if (!current()) return;
@@ -1087,16 +1145,73 @@ async function showComparison() {
   }
 }
 
+// Millimetres per length unit: lengths in these are shown in mm while they are under a metre.
+const MM_PER_UNIT = { m: 1000, cm: 10, mm: 1 };
+
+// A unit as a column head shows it: "x, y units" for "x, y units (as uploaded)".
+function shortUnit(text) {
+  return (text || "").replace(/\s*\(as uploaded\)\s*$/, "");
+}
+
+// One format for a column of differences: fixed decimals enough for two significant digits of its smallest
+// value that is more than rounding noise (1 % of the column's largest or more), `least` decimals at least and
+// 6 at most (`least` for a column of rounding noise); exponents only for a column of large values; "–" for a
+// missing one.
+function differenceFormat(values, least) {
+  const finite = values.filter((v) => typeof v === "number" && Number.isFinite(v)).map(Math.abs);
+  const top = finite.length ? Math.max(...finite) : 0;
+  if (top >= 1e5) return (x) => (typeof x === "number" && Number.isFinite(x) ? x.toExponential(2) : "–");
+  if (top < 1e-6) return (x) => fixed(x, least); // rounding noise
+  const smallest = Math.min(...finite.filter((v) => v >= top * 0.01));
+  const digits = Math.min(6, Math.max(least, 1 - Math.floor(Math.log10(smallest))));
+  return (x) => fixed(x, digits);
+}
+
+// How the comparison shows one descriptor's differences: lengths (and speeds) in m or cm as mm while the
+// column stays under a metre, with the unit named; {unit, title, format}.
+function differenceColumn(c, key) {
+  const unitText = c.units[key] || "";
+  const raw = c.directions.flatMap((d) => [d[`${key}_diff`].mean, d[`${key}_diff`].low, d[`${key}_diff`].high]);
+  const perMm = MM_PER_UNIT[c.unit];
+  const isLength = perMm !== undefined && (unitText === c.unit || unitText.startsWith(`${c.unit} `));
+  const top = Math.max(0, ...raw.filter((v) => typeof v === "number" && Number.isFinite(v)).map(Math.abs));
+  const factor = isLength && top * perMm < 1000 ? perMm : 1;
+  const scale = (x) => (typeof x === "number" ? x * factor : x);
+  const format = differenceFormat(raw.map(scale), isLength ? 1 : 3);
+  return {
+    unit: isLength && factor !== 1 ? `mm${unitText.slice(c.unit.length)}` : shortUnit(unitText),
+    title: unitText,
+    format: (x) => format(scale(x)),
+  };
+}
+
 function renderDifferences(c) {
-  const formats = intervalFormats(c.directions, DESCRIPTORS.map(([key]) => `${key}_diff`));
+  const columns = Object.fromEntries(DESCRIPTORS.map(([key]) => [key, differenceColumn(c, key)]));
+  // Each side's name with its colour in the figure (app.css: the figure's colours).
+  const side = (which, name) => el("span", { class: "side", "data-side": which }, el("i"), name);
   return el(
     "table",
     { class: "readout differences" },
-    el("caption", {}, `${c.b.name} − ${c.a.name} (b − a) per direction; coloured where the 95 % interval leaves out 0`),
+    el(
+      "caption",
+      {},
+      side("b", c.b.name),
+      " − ",
+      side("a", c.a.name),
+      " (b − a) per direction; as in the figure: red, the 95 % interval leaves out 0; grey, it holds 0",
+    ),
     el(
       "thead",
       {},
-      el("tr", {}, el("th", {}, "direction"), el("th", { title: "movements of a, of b" }, "n a, b"), DESCRIPTORS.map(([key, label]) => el("th", { title: c.units[key] }, `Δ ${label}`))),
+      el(
+        "tr",
+        {},
+        el("th", {}, "direction"),
+        el("th", { title: "movements of a, of b" }, "n a, b"),
+        DESCRIPTORS.map(([key, label]) =>
+          el("th", { title: columns[key].title, "data-key": key }, `Δ ${label}`, columns[key].unit ? el("div", { class: "unit" }, `(${columns[key].unit})`) : null),
+        ),
+      ),
     ),
     el(
       "tbody",
@@ -1109,8 +1224,8 @@ function renderDifferences(c) {
           el("td", { class: "num" }, `${d.n_a}, ${d.n_b}`),
           DESCRIPTORS.map(([key]) => {
             const v = d[`${key}_diff`];
-            const format = formats[`${key}_diff`];
-            return intervalCell(v, clearOfZero(v, format) ? (v.mean > 0 ? "pos clear" : "neg clear") : "", format);
+            const format = columns[key].format;
+            return intervalCell(v, clearOfZero(v, format) ? (v.mean > 0 ? "diff pos clear" : "diff neg clear") : "diff", format);
           }),
         ),
       ),
@@ -1326,6 +1441,21 @@ function swayUnit(kind, units) {
   return { A: `${length}²`, "A/s": `${length}²/s`, L: length, "L/s": `${length}/s`, Hz: "Hz" }[kind];
 }
 
+// How sway measures in ``units`` are shown: trials in metres in millimetres (their sway is a few mm, which
+// three decimals of a metre would hide), others as they are. {unit(kind), value(x, kind)}.
+function swayScale(units) {
+  const toMm = units === "m";
+  const factor = { A: 1e6, "A/s": 1e6, L: 1e3, "L/s": 1e3, Hz: 1 };
+  return {
+    unit: (kind) => swayUnit(kind, toMm ? "mm" : units),
+    value: (x, kind) => (toMm && typeof x === "number" ? x * factor[kind] : x),
+  };
+}
+
+function swayKind(key) {
+  return SWAY_MEASURES.find(([k]) => k === key)[2];
+}
+
 // A "Sway" button for a demonstrator with standing trials (none otherwise).
 function swayButton(d) {
   if (standingTrials(d).length === 0) return null;
@@ -1373,17 +1503,21 @@ async function showSwayTrial(recordingId) {
     // A measure the API flags (coarse: `caveats`; null: `not_estimated`) carries a star and its reason.
     const swayNote = (key) => sway.caveats?.[key] ?? sway.not_estimated?.[key];
     const notes = [...new Set(SWAY_MEASURES.map(([key]) => swayNote(key)).filter(Boolean))];
+    const scale = swayScale(sway.units);
+    const trial = $("sway-recording").selectedOptions[0]?.textContent || recordingId;
     fill($("sway-measures"),
       el(
         "table",
         { class: "readout sway-measures" },
+        el("caption", {}, `${trial}${sway.units ? "" : " · lengths in the trial's own units (uploaded without a unit)"}`),
+        el("thead", {}, el("tr", {}, el("th", {}, "measure"), el("th", {}, "value"), el("th", {}, "unit"))),
         el("tbody", {}, SWAY_MEASURES.map(([key, label, kind]) =>
           el(
             "tr",
             { "data-measure": key },
             el("th", {}, label),
-            el("td", { class: "num", title: swayNote(key) ?? "" }, fmt(sway.descriptors[key]) + (swayNote(key) ? " *" : "")),
-            el("td", { class: "meta" }, swayUnit(kind, sway.units)),
+            el("td", { class: "num", title: swayNote(key) ?? "" }, fmt(scale.value(sway.descriptors[key], kind)) + (swayNote(key) ? " *" : "")),
+            el("td", { class: "meta" }, scale.unit(kind)),
           ),
         )),
       ),
@@ -1417,16 +1551,36 @@ async function showSwayGroups(id, trials, current) {
     const summary = await getJson(`/v1/demonstrators/${encodeURIComponent(id)}/sway-summary?by=${encodeURIComponent(by)}`);
     if (!current()) return;
     const shown = ["area95", "mean_velocity", "mean_frequency"];
-    const cell = (v) => el("td", { class: "num" }, fmt(v.value), el("div", { class: "ci" }, v.low === null || v.high === null ? "" : `[${fmt(v.low)}, ${fmt(v.high)}]`));
-    const rows = summary.groups.map((g) => el("tr", { "data-group": g.label }, el("th", {}, `${by}: ${g.label} (${g.n})`), ...shown.map((m) => cell(g.measures[m]))));
-    if (summary.romberg) rows.push(el("tr", { "data-group": "romberg" }, el("th", {}, "Romberg quotient (closed / open)"), ...shown.map((m) => cell(summary.romberg[m]))));
+    const scale = swayScale(summary.unit);
+    const estimate = (v, kind) => {
+      const value = (x) => fmt(kind ? scale.value(x, kind) : x);
+      return el("td", { class: "num" }, value(v.value), el("div", { class: "ci" }, v.low === null || v.high === null ? "" : `[${value(v.low)}, ${value(v.high)}]`));
+    };
+    const rows = summary.groups.map((g) => el("tr", { "data-group": g.label }, el("th", { class: "row" }, `${by}: ${g.label} (${g.n})`), ...shown.map((m) => estimate(g.measures[m], swayKind(m)))));
+    // The quotient is of like over like: a ratio without a unit, never scaled.
+    if (summary.romberg) rows.push(el("tr", { "data-group": "romberg" }, el("th", { class: "row" }, "Romberg quotient (closed / open, no unit)"), ...shown.map((m) => estimate(summary.romberg[m], null))));
+    const names = new Map(trials.map((r) => [r.id, recordingName(r)]));
+    const left = summary.unlabelled || [];
     fill(box,
       el(
         "table",
         { class: "readout sway-groups" },
-        el("thead", {}, el("tr", {}, el("th", {}, ""), ...shown.map((m) => el("th", {}, SWAY_MEASURES.find(([k]) => k === m)[1])))),
+        el("caption", {}, `Standing trials grouped by their label “${by}” (the number of trials in brackets)`),
+        el(
+          "thead",
+          {},
+          el(
+            "tr",
+            {},
+            el("th", {}, by),
+            ...shown.map((m) => el("th", { "data-measure": m }, SWAY_MEASURES.find(([k]) => k === m)[1], el("div", { class: "unit" }, `(${scale.unit(swayKind(m))})`))),
+          ),
+        ),
         el("tbody", {}, rows),
       ),
+      left.length
+        ? el("p", { class: "units", "data-role": "sway-unlabelled" }, `Left out, without a “${by}” label: ${left.map((id) => names.get(id) || id).join(", ")}.`)
+        : null,
     );
   } catch (error) {
     if (current()) fill(box, unavailable(error));
@@ -1734,18 +1888,23 @@ function drawLossCurve(box, history) {
   const xMax = Math.max(history.maxSteps || 0, lastStep, 1);
   const W = Math.max(360, box.clientWidth || 640);
   const H = 240;
-  const M = { left: 52, right: 12, top: 10, bottom: 30 };
+  const M = { left: 66, right: 12, top: 10, bottom: 34 };
   const x = (step) => M.left + (step / xMax) * (W - M.left - M.right);
   const y = (v) => M.top + (1 - (v - lo) / (hi - lo)) * (H - M.top - M.bottom);
   const plot = svg("svg", { viewBox: `0 0 ${W} ${H}`, width: W, height: H, role: "img", "aria-label": "loss curve", "data-points": points.length, "data-source": history.source || "samples" });
+  // Each axis: a tick mark and its value at round numbers, and the axis's name.
   for (const t of ticks(lo, hi)) {
     plot.append(svg("line", { x1: M.left, x2: W - M.right, y1: y(t), y2: y(t), class: "grid" }));
-    plot.append(svg("text", { x: M.left - 6, y: y(t) + 4, "text-anchor": "end", class: "tick" }, fmt(t, 2)));
+    plot.append(svg("line", { x1: M.left - 5, x2: M.left, y1: y(t), y2: y(t), class: "axis tick-mark", "data-axis": "y" }));
+    plot.append(svg("text", { x: M.left - 8, y: y(t) + 4, "text-anchor": "end", class: "tick", "data-axis": "y" }, fmt(t, 2)));
   }
   for (const t of ticks(0, xMax)) {
-    plot.append(svg("text", { x: x(t), y: H - M.bottom + 16, "text-anchor": "middle", class: "tick" }, t));
+    plot.append(svg("line", { x1: x(t), x2: x(t), y1: H - M.bottom, y2: H - M.bottom + 5, class: "axis tick-mark", "data-axis": "x" }));
+    plot.append(svg("text", { x: x(t), y: H - M.bottom + 17, "text-anchor": "middle", class: "tick", "data-axis": "x" }, t));
   }
-  plot.append(svg("text", { x: W - M.right, y: H - 2, "text-anchor": "end", class: "tick" }, "step"));
+  const middle = M.top + (H - M.top - M.bottom) / 2;
+  plot.append(svg("text", { x: 12, y: middle, transform: `rotate(-90 12 ${middle})`, "text-anchor": "middle", class: "axis-label", "data-role": "y-label" }, "loss"));
+  plot.append(svg("text", { x: M.left + (W - M.left - M.right) / 2, y: H - 2, "text-anchor": "middle", class: "axis-label", "data-role": "x-label" }, "step"));
   plot.append(svg("line", { x1: M.left, x2: M.left, y1: M.top, y2: H - M.bottom, class: "axis" }));
   plot.append(svg("line", { x1: M.left, x2: W - M.right, y1: H - M.bottom, y2: H - M.bottom, class: "axis" }));
   if (history.bestStep !== null && history.bestStep !== undefined) {
@@ -1877,15 +2036,15 @@ async function renderDownloads(job) {
 
 // ---- lightbox: a heatmap at full size ------------------------------------------------------------
 
-// The picture at its natural size; with ``channels`` ({reward, layout} of a layout with several channels)
-// also a button per channel that draws that channel alone, filling the screen.
+// The picture (a heatmap, or a map beside one) at its natural size; with ``channels`` ({reward, layout} of a
+// layout with several channels) also a button per channel that draws that channel alone, filling the screen.
 // Focus moves to its Close button; Escape or Close shut it and return focus to where it was.
-function openLightbox(src, title, channels) {
+function openLightbox(src, title, channels, what = `heatmap of ${title}`) {
   if (!src) return;
   showWholePicture();
   renderChannelButtons(channels, title);
   $("lightbox-img").src = src;
-  $("lightbox-img").alt = `heatmap of ${title}, full size`;
+  $("lightbox-img").alt = `${what}, full size`;
   $("lightbox-title").textContent = title;
   $("lightbox-open").href = src;
   if ($("lightbox").hidden) state.lightboxOpener = document.activeElement;
@@ -1897,6 +2056,7 @@ function closeLightbox() {
   const wasOpen = !$("lightbox").hidden;
   $("lightbox").hidden = true;
   state.lightboxCall += 1;
+  $("lightbox-loading").hidden = true;
   $("lightbox-img").removeAttribute("src");
   $("lightbox-title").textContent = "";
   $("lightbox-open").removeAttribute("href");
@@ -2102,8 +2262,9 @@ document.addEventListener("DOMContentLoaded", () => {
   $("submit-demonstrator").addEventListener("change", renderSubmitTasks);
   $("submit-form").addEventListener("submit", submitJob);
   $("lightbox-close").addEventListener("click", closeLightbox);
+  // A click on the picture or beside it closes (not one on the bar, nor on a channel drawn alone).
   $("lightbox").addEventListener("click", (event) => {
-    if (event.target === $("lightbox") || event.target.classList.contains("lightbox-body")) closeLightbox();
+    if (event.target === $("lightbox") || event.target === $("lightbox-img") || event.target.classList.contains("lightbox-body")) closeLightbox();
   });
   document.addEventListener("keydown", (event) => {
     if ($("lightbox").hidden) return;
@@ -2168,20 +2329,28 @@ function renderChannelButtons(channels, title) {
 
 function showWholePicture() {
   state.lightboxCall += 1;
+  $("lightbox-loading").hidden = true;
   $("lightbox-channel").hidden = true;
   $("lightbox-img").hidden = false;
 }
 
 // Channel ``channel`` of the reward (state = (channel·height + y)·width + x, y up), coloured on the range of
-// all channels so that channels compare, at the largest whole number of pixels per cell the window allows.
+// all channels so that channels compare, at the largest whole number of pixels per cell the window allows
+// (room left for the axes); a loading sign shows while its values come.
 async function drawChannel(reward, layout, channel, caption) {
   const call = ++state.lightboxCall;
-  const { values } = await getJson(`/v1/rewards/${encodeURIComponent(reward.reward_id)}?format=json`);
+  $("lightbox-loading").hidden = false;
+  let values;
+  try {
+    ({ values } = await getJson(`/v1/rewards/${encodeURIComponent(reward.reward_id)}?format=json`));
+  } finally {
+    if (call === state.lightboxCall) $("lightbox-loading").hidden = true;
+  }
   if (call !== state.lightboxCall) return;
   const { width, height } = layout;
   const lo = Math.min(...values);
   const hi = Math.max(...values);
-  const cell = Math.max(4, Math.floor(Math.min((innerWidth - 40) / width, (innerHeight - 120) / height)));
+  const cell = Math.max(4, Math.floor(Math.min((innerWidth - 90) / width, (innerHeight - 170) / height)));
   const canvas = $("lightbox-canvas");
   canvas.width = width * cell;
   canvas.height = height * cell;
@@ -2194,8 +2363,18 @@ async function drawChannel(reward, layout, channel, caption) {
       context.fillRect(x * cell, (height - 1 - y) * cell, cell, cell);
     }
   }
-  canvas.setAttribute("aria-label", `${caption}, reward ${fmt(lo)} (purple) to ${fmt(hi)} (yellow)`);
+  drawAxisTicks(width, height, cell);
+  canvas.setAttribute("aria-label", `${caption}, reward ${fmt(lo)} (purple) to ${fmt(hi)} (yellow), x to the right, y up`);
   fill($("lightbox-channel-title"), el("strong", {}, caption), ` · reward from ${fmt(lo)} (purple) to ${fmt(hi)} (yellow), on the range of all channels`);
   $("lightbox-img").hidden = true;
   $("lightbox-channel").hidden = false;
+}
+
+// The cell numbers along the drawn channel's x axis (below it) and y axis (beside it, 0 at the bottom), as
+// the server's heatmaps number them; every cell's while they are wide enough, else every 2nd, 5th, 10th, ….
+function drawAxisTicks(width, height, cell) {
+  const every = [1, 2, 5, 10, 20, 50, 100].find((k) => k * cell >= 22) || 200;
+  const tick = (n, size) => el("span", { style: size }, n % every === 0 ? String(n) : "");
+  fill($("lightbox-x-ticks"), Array.from({ length: width }, (_, x) => tick(x, { width: `${cell}px` })));
+  fill($("lightbox-y-ticks"), Array.from({ length: height }, (_, k) => tick(height - 1 - k, { height: `${cell}px`, lineHeight: `${cell}px` })));
 }
