@@ -20,7 +20,7 @@ import io
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -145,8 +145,9 @@ def heatmap_figure(
     for spare in grid.ravel()[layout.channels :]:
         spare.remove()
     extent = (-0.5, layout.width - 0.5, -0.5, layout.height - 0.5)
+    colours = _colours(scale, low, high)
     for channel, ax in enumerate(panels):
-        image = ax.imshow(maps[channel], origin="lower", extent=extent, cmap="viridis", vmin=low, vmax=high)
+        image = ax.imshow(maps[channel], origin="lower", extent=extent, **colours)
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.yaxis.set_major_locator(MaxNLocator(integer=True))
         if names[channel]:
@@ -162,6 +163,23 @@ def heatmap_figure(
     if trajectories:
         _overlay(fig, panels, trajectories, layout)
     return fig
+
+
+def _colours(scale: Scale | None, low: float, high: float) -> dict[str, Any]:
+    """``imshow``'s colour arguments: viridis from low to high, or for a `Scale` with named levels one
+    viridis colour per level in blocks (each level's colour out to halfway to its neighbours), so a colour
+    bar of a few categories shows those categories, not a continuum between them."""
+    if not (scale and scale.ticks):
+        return {"cmap": "viridis", "vmin": low, "vmax": high}
+    from matplotlib import colormaps
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+
+    levels = np.array(sorted(scale.ticks), dtype=np.float64)
+    span = max(scale.high - scale.low, 1e-12)
+    cmap = ListedColormap(colormaps["viridis"]((levels - scale.low) / span))
+    gaps = np.diff(levels) if len(levels) > 1 else np.ones(1)
+    edges = [levels[0] - gaps[0] / 2, *(levels[1:] - gaps / 2), levels[-1] + gaps[-1] / 2]
+    return {"cmap": cmap, "norm": BoundaryNorm(edges, cmap.N)}
 
 
 def matrix_png(

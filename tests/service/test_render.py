@@ -112,6 +112,7 @@ def test_the_first_state_is_drawn_bottom_left() -> None:
 
 
 def test_a_fixed_scale_draws_each_level_in_its_own_colour_whatever_levels_one_map_holds() -> None:
+    from matplotlib import colormaps
     from matplotlib.image import AxesImage
 
     from service.results.downloads import FIXED_SCALES
@@ -123,7 +124,10 @@ def test_a_fixed_scale_draws_each_level_in_its_own_colour_whatever_levels_one_ma
             values, layout=Layout(width=2, height=2), title="t", colorbar_label="evidence", scale=evidence
         )
         image = next(a for a in fig.axes[0].get_children() if isinstance(a, AxesImage))
-        assert image.norm.vmin == 0.0 and image.norm.vmax == 1.0  # not the map's own min and max
+        for level in evidence.ticks:  # viridis at the level on the fixed scale, not on the map's own range
+            drawn = image.cmap(image.norm(np.array([level])))[0]
+            assert np.allclose(drawn, colormaps["viridis"](level)), level
+        assert image.cmap.N == 3  # one block per level on the colour bar, not a continuum between them
         bar = fig.axes[-1]
         assert [t.get_text() for t in bar.get_yticklabels()] == ["elsewhere", "next to a visit", "visited"]
     unscaled = heatmap_figure(np.array([0.5, 1.0] * 2), layout=Layout(width=2, height=2), title="t")
