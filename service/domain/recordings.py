@@ -230,6 +230,7 @@ class RecordingOut(Resource):
                             "n_steps": 212,
                         }
                     ],
+                    "units": "m",
                     "settings": {
                         "bounds": PLATE_EXAMPLE,
                         "discretise": {"width": 100, "height": 100, "smooth_s": 0.05},
@@ -260,6 +261,10 @@ class RecordingOut(Resource):
         description="Samples that stayed in the previous sample's cell (pauses, stationary stretches)."
     )
     tasks: list[RecordingTask]
+    units: str | None = Field(
+        description="The length unit of the stored COP (`m`, `cm`, `mm` or the upload's own `units`; metres "
+        "for a force-plate file); null when the upload gave none: its lengths are as uploaded."
+    )
     settings: dict[str, Any] = Field(
         description="Bounds and the discretise/segment settings used, defaults filled; for a force-plate file "
         "also `plate`: how it was read (the `plate` options, the file's own units, unloaded samples cut away)."
@@ -281,6 +286,14 @@ class RecordingOut(Resource):
                 "n_samples": row.n_samples,
                 "duration": row.duration,
                 "settings": row.settings,
+                "units": recording_units(row),
                 **row.summary,
             }
         )
+
+
+def recording_units(row: RecordingRow) -> str | None:
+    """The length unit of a recording's stored COP: metres for a plate file, else the upload's `units`, with
+    a spelling of metres, centimetres or millimetres read as `m`, `cm` or `mm` (`length_unit`)."""
+    unit: str | None = row.settings.get("units") or ("m" if "plate" in row.settings else None)
+    return None if unit is None else length_unit(unit) or unit

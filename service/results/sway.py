@@ -25,11 +25,12 @@ from metairl_engine.motion.sway import (
     quotient,
     sway_measures,
 )
+from service.domain.recordings import recording_units
 from service.domain.sway import Estimate, Spectra, SwayDifference, SwayGroup, SwayOut, SwaySummaryOut
 from service.files.images import sway_png
 from service.problems import Conflict, Unprocessable
 from service.results.downloads import Download
-from service.results.units import common_unit, recording_units
+from service.results.units import common_unit
 from service.store.blobs import get_array
 from service.store.models.demonstrators import Demonstrator
 from service.store.models.recordings import Recording as RecordingRow

@@ -5,19 +5,12 @@ from __future__ import annotations
 
 from collections import Counter
 
-from metairl_engine.motion.force_plate import length_unit
+from service.domain.recordings import recording_units
 from service.problems import Conflict
 from service.store.models.recordings import Recording as RecordingRow
 
 LENGTH_UNITS = {"mm": 1e-3, "cm": 1e-2, "m": 1.0}
 """Length units trials in different units are converted between (metres per unit), finest first."""
-
-
-def recording_units(row: RecordingRow) -> str | None:
-    """The length unit of a recording's stored COP: metres for a plate file, else the upload's `units`, with
-    a spelling of metres, centimetres or millimetres read as `m`, `cm` or `mm` (`length_unit`)."""
-    unit: str | None = row.settings.get("units") or ("m" if "plate" in row.settings else None)
-    return None if unit is None else length_unit(unit) or unit
 
 
 def common_unit(rows: list[RecordingRow]) -> tuple[str | None, dict[str, float]]:

@@ -19,6 +19,7 @@ def check_units(lab: Any) -> None:
     stander = lab.create_demonstrator(name="stander")
     trial = lab.upload_recording(stander, standing_csv(0), protocol="standing", units="cm")
     assert trial["settings"]["units"] == "cm"
+    assert trial["units"] == "cm"  # beside the settings, as the listing shows it
     assert lab.recording_sway(trial["id"])["units"] == "cm"
     in_mm = b"t,COPx[mm],COPy[mm]\n" + standing_csv(1).split(b"\n", 1)[1]
     with pytest.raises(UnprocessableEntityError) as refused:
