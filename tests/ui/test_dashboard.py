@@ -216,6 +216,7 @@ def test_dashboard_follows_a_real_job_from_queued_to_succeeded_and_shows_its_rew
     assert set(seen) <= {"queued", "running", "succeeded"}, seen
     page.wait_for_selector(f"tr[data-job='{blocker}'][data-status='cancelled']")
     assert ours.locator("[role='progressbar']").get_attribute("aria-valuenow") == "100"
+    assert re.search(r"attempt 1/\d+ · [\d. min]+ s in all", ours.inner_text()), ours.inner_text()
 
     # Open the results: three heatmaps (baseline first), the 3×3 matrix, key states of both tasks.
     ours.locator("[data-action='results']").click()
@@ -304,6 +305,7 @@ def test_dashboard_reads_the_event_stream_resumes_with_last_event_id_and_stops_a
     assert page.locator("#live").inner_text() == "● live (event stream)"
     assert row.locator("[role='progressbar']").get_attribute("aria-valuenow") == "14"
     assert "0.750" in row.inner_text()
+    assert "step 42 / 300 · fitting 3.5 s" in row.inner_text()  # the fit's own time, named as such
     deadline = time.monotonic() + 30
     while not pending:
         assert time.monotonic() < deadline, streams

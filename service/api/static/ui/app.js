@@ -486,7 +486,8 @@ function renderJobRow(job) {
   const steps = p ? p.max_steps || job.config.max_steps : job.config && job.config.max_steps;
   const fraction = job.status === "succeeded" ? 1 : p && steps ? Math.min(1, p.step / steps) : 0;
   const done = job.status === "succeeded";
-  const barText = p ? `step ${p.step} / ${steps}${p.elapsed_s != null ? ` · ${fmt(p.elapsed_s, 1)} s` : ""}` : job.status === "queued" ? "waiting for a worker" : "";
+  // The fit's own time (the engine's clock at this step), apart from the attempt's time from start to end.
+  const barText = p ? `step ${p.step} / ${steps}${p.elapsed_s != null ? ` · fitting ${fmt(p.elapsed_s, 1)} s` : ""}` : job.status === "queued" ? "waiting for a worker" : "";
   const created = new Date(job.created_at);
   row.tr.dataset.status = job.status;
   row.tr.className = state.selected === job.id || state.run === job.id ? "selected" : "";
@@ -498,11 +499,11 @@ function renderJobRow(job) {
       "td",
       {},
       el("div", { class: `bar${done ? " done" : ""}`, role: "progressbar", "aria-valuemin": 0, "aria-valuemax": 100, "aria-valuenow": Math.round(fraction * 100) }, el("span", { style: { width: `${(fraction * 100).toFixed(1)}%` } })),
-      el("div", { class: "bar-text" }, barText),
+      el("div", { class: "bar-text", title: "The step the fit has reached, and the fit's own time to it" }, barText),
     ),
     el("td", { class: "num" }, p ? fmt(p.loss) : "–"),
     el("td", { class: "config-cell", "data-role": "config" }, configSummary(job.config)),
-    el("td", { class: "num", "data-role": "best-step" }, job.best_step ?? "–", el("div", { class: "bar-text" }, attemptsText(job))),
+    el("td", { class: "num", "data-role": "best-step" }, job.best_step ?? "–", el("div", { class: "bar-text", title: "The last attempt, and its time from start to end: the fit, loading the data and storing the rewards" }, attemptsText(job))),
     el(
       "td",
       { class: "actions" },
@@ -1663,7 +1664,7 @@ function configSummary(config) {
 
 function attemptsText(job) {
   const took = duration(job.started_at, job.finished_at);
-  return `attempt ${job.attempts}/${job.max_attempts}${took ? ` · ${took}` : ""}`;
+  return `attempt ${job.attempts}/${job.max_attempts}${took ? ` · ${took} in all` : ""}`;
 }
 
 // "12.3 s" or "4 min 5 s" between two ISO times (until now while the second is missing); "" before the start.
