@@ -858,7 +858,7 @@ Three frozen families of another kind, added last (engine `held-out-stays`, thei
 sharing pools as on the grids: +0.250 ± 0.036 over none on worlds 0 … 5 at 3 demonstrations (0.401 against
 0.151), +0.199 ± 0.035 on worlds 6 … 17, +0.273 ± 0.038 at 10, ahead on every world (by less than +0.10 on 4
 of worlds 6 … 17), its EVD / random under none's on every world (0.219 against 0.445 at 3). Four rooms uploaded
-without features pools too: the choice takes the shared solver on every world (about 26 s of CPU a fit, against
+without features pools too: the choice takes the shared solver on every world (about 15 s of CPU a fit, against
 2–3 with features), +0.165 ± 0.052 on worlds 0 … 5 at 3 (one world under none's), +0.242 ± 0.026 on worlds 6 … 17,
 +0.278 ± 0.024 at 10, EVD / random 0.005 against 0.246. Four rooms with each cell's (x, y) as features is where
 the default does not pool: its Pearson is under none's on worlds 0 … 5 (−0.066 against 0.020 at 3, −0.087 ±
@@ -868,7 +868,7 @@ maxent solver's less still (0.005, Pearson 0.052). The reward is a step cost wit
 small patches seen through the place alone, which is what coordinates do not suit (docs/method.md, "MDPs
 without features") and the case `tabular_choice` settles for MDPs without features. Here the features say no
 more than where a state is, but the choice is not made for MDPs with features: every grid's features are its
-coordinates, and the choice's extra fits (about ten times a fit's time here) would come with every fit.
+coordinates, and the choice's extra fits (about six times a fit's time here) would come with every fit.
 
 The IRL toolkit's gridworld as a lab makes it through the API (`kind: grid`: the grid's normalised
 coordinates as its features, not the split table; frozen, added last, seeds 11800+) pools, thinly: +0.129 ±

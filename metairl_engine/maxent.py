@@ -156,15 +156,25 @@ class _TaskObjective:
 
     def likelihood(self, r: np.ndarray) -> tuple[float, np.ndarray]:
         """(mean NLL per demonstrated step, its gradient) at reward r; checks for cancellation first."""
+        self.check_cancelled()
+        plan = value_iteration(
+            self.p, r, gamma=self.mdp.gamma, confidence=self.config.confidence, initial_value=self.value
+        )
+        return self.planned(plan.value, plan.policy)
+
+    def check_cancelled(self) -> None:
+        """Raise `Cancelled` once the fit has been asked to stop."""
         if self.should_stop is not None and self.should_stop():
             raise Cancelled("fit cancelled")
-        b = self.config.confidence
-        plan = value_iteration(self.p, r, gamma=self.mdp.gamma, confidence=b, initial_value=self.value)
-        self.value = plan.value
-        self.nll = -float(np.mean(np.log(np.maximum(plan.policy[self.states, self.actions], 1e-300))))
-        p_pi = policy_matrix(self.p, plan.policy)
+
+    def planned(self, value: np.ndarray, policy: np.ndarray) -> tuple[float, np.ndarray]:
+        """(mean NLL per demonstrated step, its gradient) given the soft plan of the reward: its value (S,),
+        kept as the next plan's warm start, and its policy (S, A)."""
+        self.value = value
+        self.nll = -float(np.mean(np.log(np.maximum(policy[self.states, self.actions], 1e-300))))
+        p_pi = policy_matrix(self.p, policy)
         x = _discounted_solve(p_pi, self.demanded - p_pi.T @ self.n_s, gamma=self.mdp.gamma)
-        return self.nll, -b * x / len(self.states)
+        return self.nll, -self.config.confidence * x / len(self.states)
 
 
 class _SharedObjective:
@@ -196,12 +206,38 @@ class _SharedObjective:
     def __call__(self, x: np.ndarray) -> tuple[float, np.ndarray]:
         """(objective, gradient) at x."""
         _, rewards = self.rewards(x)
-        terms = [o.likelihood(r) for o, r in zip(self.objectives, rewards, strict=True)]
+        terms = self.likelihoods(rewards)
         gradients = np.asarray([g for _, g in terms])
         self.nll = float(sum(nll for nll, _ in terms))  # summed over the tasks
         self.loss = self.nll + 0.5 * float(self.ridge @ (x * x))
         gradient = np.concatenate([gradients.sum(axis=0), gradients[self.bonus_task, self.bonus_state]])
         return self.loss, gradient + self.ridge * x
+
+    def likelihoods(self, rewards: np.ndarray) -> list[tuple[float, np.ndarray]]:
+        """Each task's (mean NLL, gradient) at its reward (rewards (T, S)); the tasks on one MDP are planned
+        together (`value_iteration` of a batch: one sparse product per iteration for all of them)."""
+        self.objectives[0].check_cancelled()
+        terms: dict[int, tuple[float, np.ndarray]] = {}
+        for tasks in _by_transitions(self.objectives).values():
+            first = self.objectives[tasks[0]]
+            plan = value_iteration(
+                first.p,
+                rewards[tasks].T,
+                gamma=first.mdp.gamma,
+                confidence=first.config.confidence,
+                initial_value=np.stack([self.objectives[i].value for i in tasks], axis=1),
+            )
+            for k, i in enumerate(tasks):
+                terms[i] = self.objectives[i].planned(plan.value[:, k], plan.policy[:, :, k])
+        return [terms[i] for i in range(len(self.objectives))]
+
+
+def _by_transitions(objectives: Sequence[_TaskObjective]) -> dict[int, list[int]]:
+    """The objectives' indices grouped by their MDP's transition matrix (one per distinct MDP)."""
+    groups: dict[int, list[int]] = {}
+    for i, o in enumerate(objectives):
+        groups.setdefault(id(o.p), []).append(i)
+    return groups
 
 
 def _discounted_solve(

@@ -50,17 +50,19 @@ def _build_transition_matrix(mdp: MDP) -> sp.csr_matrix:
 
 
 def row_logsumexp(x: np.ndarray) -> np.ndarray:
-    """log Σ_j exp(x[i, j]) per row of a 2-D array, shifted by the row's maximum for stability (the
-    same as ``scipy.special.logsumexp(x, axis=1)``, which spends about 0.35 ms a call in its argument handling
-    on a 256 × 9 array, three quarters of a tabular solver's fit that calls it once per value iteration)."""
+    """log Σ_j exp(x[i, j, …]) over axis 1 (each row's entries, for every index of any further axes), shifted
+    by the maximum for stability: ``scipy.special.logsumexp(x, axis=1)``, which spends about 0.35 ms a call
+    in its argument handling on a 256 × 9 array, three quarters of a tabular solver's fit that calls it once
+    per value iteration."""
     peak = x.max(axis=1, keepdims=True)
     peak = np.where(np.isfinite(peak), peak, 0.0)
-    return (peak + np.log(np.exp(x - peak).sum(axis=1, keepdims=True)))[:, 0]
+    return np.squeeze(peak + np.log(np.exp(x - peak).sum(axis=1, keepdims=True)), axis=1)
 
 
 @dataclass(frozen=True)
 class Plan:
-    """The solution of one planning problem: ``value`` (S,), ``q`` (S, A), ``policy`` (S, A), iterations used."""
+    """The solution of one planning problem: ``value`` (S,), ``q`` (S, A), ``policy`` (S, A), iterations used;
+    of a batch of T rewards on one MDP, ``value`` (S, T), ``q`` and ``policy`` (S, A, T)."""
 
     value: np.ndarray
     q: np.ndarray
@@ -81,19 +83,24 @@ def value_iteration(
 ) -> Plan:
     """Iterate ``V ← backup_a Q(s, a)`` to a fixed point; the policy is softmax(b·Q) (soft) or greedy (max).
 
-    Soft backup: ``V = (1/b) log Σ_a exp(b·Q)`` (maximum causal entropy, b = ``confidence``).
+    Soft backup: ``V = (1/b) log Σ_a exp(b·Q)`` (maximum causal entropy, b = ``confidence``). ``reward``
+    (S,), or (S, T) for T rewards on this MDP planned together: one sparse product per iteration for all of
+    them, each value kept from the iteration at which it converged, so each is the value planned alone.
     """
     n_states = transitions.shape[1]
     n_actions = transitions.shape[0] // n_states
     r = np.asarray(reward, dtype=np.float64)
-    v = np.zeros(n_states) if initial_value is None else np.asarray(initial_value, dtype=np.float64)
-    q = np.zeros((n_states, n_actions))
-    iterations, delta = 0, np.inf
-    while delta >= tolerance and iterations < max_iterations:
-        q = (transitions @ (r + gamma * v)).reshape(n_states, n_actions)
+    v = np.zeros(r.shape) if initial_value is None else np.asarray(initial_value, dtype=np.float64)
+    shape = (n_states, n_actions, *r.shape[1:])
+    moving = np.ones(r.shape[1:], dtype=bool)  # the batch's rewards whose values have not yet converged
+    iterations = 0
+    while moving.any() and iterations < max_iterations:
+        q = (transitions @ (r + gamma * v)).reshape(shape)
         new_v = q.max(axis=1) if backup == "max" else row_logsumexp(confidence * q) / confidence
-        delta, v, iterations = float(np.max(np.abs(new_v - v))), new_v, iterations + 1
-    q = (transitions @ (r + gamma * v)).reshape(n_states, n_actions)
+        delta = np.max(np.abs(new_v - v), axis=0)
+        v = np.where(moving, new_v, v)  # a converged value stays as it stopped, as if planned alone
+        moving, iterations = moving & (delta >= tolerance), iterations + 1
+    q = (transitions @ (r + gamma * v)).reshape(shape)
     if backup == "max":
         policy = (q >= q.max(axis=1, keepdims=True) - 1e-12).astype(np.float64)
         policy /= policy.sum(axis=1, keepdims=True)
