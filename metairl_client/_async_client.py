@@ -202,9 +202,13 @@ class AsyncClient:
         """`GET /v1/tasks/{id}/true-reward`: the stored ground truth (``values``, ``sha256``, …)."""
         return await self._call(ops.get_true_reward(task_id))
 
-    async def add_demonstrations(self, task_id: str, trajectories: Iterable[Trajectory]) -> str:
+    async def add_demonstrations(
+        self, task_id: str, trajectories: Iterable[Trajectory | Mapping[str, Any]]
+    ) -> str:
         """`POST /v1/tasks/{id}/demonstrations` with every trajectory, given as objects with ``states`` and
-        ``actions`` or as (states, actions) pairs of integer arrays. Returns the upload batch's id."""
+        ``actions``, as (states, actions) pairs of integer arrays or as the API's ``{"states": …, "actions":
+        …}`` (floats that are whole numbers, as ``np.loadtxt`` gives, are sent as integers). Returns the upload
+        batch's id; `InvalidRequestError`, nothing sent, for a trajectory of another shape."""
         return await self._call(ops.add_demonstrations(task_id, trajectories))
 
     async def list_demonstrations(

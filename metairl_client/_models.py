@@ -23,8 +23,8 @@ class TrajectoryLike(Protocol):
     def actions(self) -> np.ndarray: ...
 
 
-Trajectory = TrajectoryLike | tuple[Sequence[int], Sequence[int]]
-"""A trajectory object, or a (states, actions) pair."""
+Trajectory = TrajectoryLike | tuple[Sequence[int] | np.ndarray, Sequence[int] | np.ndarray]
+"""A trajectory object, or a (states, actions) pair of integer sequences or arrays."""
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ from urllib.parse import quote
 import httpx
 import numpy as np
 
+from metairl_client._errors import InvalidRequestError
 from metairl_client._models import JobRewardIds, JobState, Page, Trajectory
 from metairl_client._transport import Call
 
@@ -90,11 +91,39 @@ def npz_bytes(arrays: Mapping[str, np.ndarray]) -> bytes:
     return buffer.getvalue()
 
 
-def _states_actions(t: Trajectory) -> tuple[Any, Any]:
-    """(states, actions) of a trajectory object or pair."""
-    if isinstance(t, tuple):
-        return t
-    return t.states, t.actions
+def _states_actions(t: Trajectory | Mapping[str, Any], index: int) -> tuple[list[Any], list[Any]]:
+    """(states, actions) of trajectory ``index``, a (states, actions) pair, an object with ``states`` and
+    ``actions`` or the JSON body's ``{"states": …, "actions": …}``, as lists; `InvalidRequestError` for
+    anything else."""
+    states: Any
+    actions: Any
+    if isinstance(t, tuple) and len(t) == 2:
+        states, actions = t
+    elif isinstance(t, Mapping) and {"states", "actions"} <= t.keys():
+        states, actions = t["states"], t["actions"]
+    elif hasattr(t, "states") and hasattr(t, "actions"):
+        states, actions = t.states, t.actions
+    else:
+        problem = TypeError(
+            f"trajectory {index} is a {type(t).__name__}: give (states, actions), an object with .states and "
+            '.actions, or {"states": [...], "actions": [...]}'
+        )
+        raise InvalidRequestError(problem, request="POST /v1/tasks/{id}/demonstrations")
+    return _whole(states), _whole(actions)
+
+
+def _whole(values: Any) -> list[Any]:
+    """``values`` as a list, floats that are whole numbers (an array from ``np.loadtxt``) as integers, as
+    the engine's ``Trajectory.of`` reads them; anything else as given, for the service to name."""
+    array = np.asarray(values)
+    if (
+        array.dtype.kind == "f"
+        and array.size
+        and np.all(np.isfinite(array))
+        and np.all(array == np.round(array))
+    ):
+        array = array.astype(np.int64)
+    return list(array.tolist()) if array.ndim else [array.tolist()]
 
 
 # -------------------------------------------------------------- service
@@ -218,12 +247,12 @@ def get_true_reward(task_id: str) -> Call[dict[str, Any]]:
     return Call("GET", f"/v1/tasks/{_segment(task_id)}/true-reward", _object)
 
 
-def add_demonstrations(task_id: str, trajectories: Iterable[Trajectory]) -> Call[str]:
+def add_demonstrations(task_id: str, trajectories: Iterable[Trajectory | Mapping[str, Any]]) -> Call[str]:
     """`POST /v1/tasks/{id}/demonstrations` with every trajectory as JSON."""
     body = {
         "trajectories": [
-            {"states": np.asarray(s).tolist(), "actions": np.asarray(a).tolist()}
-            for s, a in (_states_actions(t) for t in trajectories)
+            {"states": s, "actions": a}
+            for s, a in (_states_actions(t, i) for i, t in enumerate(trajectories))
         ]
     }
     return Call("POST", f"/v1/tasks/{_segment(task_id)}/demonstrations", _id, json=body)

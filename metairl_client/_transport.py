@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Generic, TypeVar
 
 import httpx
+import numpy as np
 from httpx._client import UseClientDefault  # the type of httpx.USE_CLIENT_DEFAULT
 
 from metairl_client._errors import (
@@ -81,14 +82,15 @@ class Call(Generic[T]):
         return replace(self, headers={**self.headers, IDEMPOTENCY_HEADER: uuid.uuid4().hex})
 
     def build(self, http: httpx.Client | httpx.AsyncClient, timeout: Timeout) -> httpx.Request:
-        """The request, built anew for each try (a multipart body cannot always be sent twice);
-        `InvalidRequestError` for arguments JSON cannot carry (NaN, infinity, objects)."""
+        """The request, built anew for each try (a multipart body cannot always be sent twice), numpy arrays
+        and numbers in a JSON body as the lists and numbers they hold (`plain`); `InvalidRequestError` for
+        arguments JSON cannot carry (NaN, infinity, objects)."""
         try:
             return http.build_request(
                 self.method,
                 self.path,
                 params=self.params,
-                json=self.json,
+                json=plain(self.json),
                 files=self.files,
                 data=self.data,
                 headers=self.headers,
@@ -101,6 +103,18 @@ class Call(Generic[T]):
     def name(self) -> str:
         """``GET /v1/jobs/job_…``, as error messages name the request."""
         return f"{self.method} {self.path}"
+
+
+def plain(value: Any) -> Any:
+    """A JSON body with numpy arrays as (nested) lists and numpy scalars as Python numbers, everything else as
+    it is: a lab's arrays go into a JSON request as they come."""
+    if isinstance(value, np.ndarray | np.generic):
+        return value.tolist()
+    if isinstance(value, Mapping):
+        return {k: plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [plain(v) for v in value]
+    return value
 
 
 def _final(call: Call[T], response: httpx.Response) -> T:

@@ -63,7 +63,9 @@ class Waiter:
     def show(self, state: JobState) -> None:
         """Take a new state and draw it."""
         self.state = state
-        if state.max_steps and self.bar.total != state.max_steps:
+        if state.status == "succeeded" and state.step:
+            self.bar.total = state.step  # stopped early, as most fits do: it needed no more steps
+        elif state.max_steps and self.bar.total != state.max_steps:
             self.bar.total = state.max_steps  # not `reset`: its clock, and so the rate it shows, runs on
         self.bar.set_description_str(f"{state.id} {state.status}", refresh=False)
         self.bar.n = state.step or 0

@@ -206,3 +206,11 @@ def test_the_bar_clock_runs_from_the_start_of_the_wait() -> None:
         # instant since the total became known (thousands of steps per second).
         assert waiter.bar.format_dict["elapsed"] >= 0.05 and waiter.bar.total == 10
     assert "5/10" in bar.getvalue()
+
+
+def test_the_bar_of_a_fit_that_stopped_early_ends_full() -> None:
+    bar = io.StringIO()
+    with Waiter("job_1", timeout_s=None, progress=True, stream=bar) as waiter:
+        waiter.show(JobState.from_json(job("running", 4)))
+        waiter.show(JobState.from_json(job("succeeded", 4)))  # 4 of max_steps 10: the fit converged
+    assert "4/10" in bar.getvalue() and "100%" in bar.getvalue().splitlines()[-1].split("\r")[-1]
