@@ -11,8 +11,15 @@ from starlette.datastructures import FormData, UploadFile
 from starlette.exceptions import HTTPException
 
 from service.json_input import NUL, JsonTooDeep, nul_refused, parse_json
-from service.problems import ApiError, Unprocessable, UnsupportedMediaType, not_utf8_json, validation_errors
-from service.sizes import check_request_memory
+from service.problems import (
+    ApiError,
+    PayloadTooLarge,
+    Unprocessable,
+    UnsupportedMediaType,
+    not_utf8_json,
+    validation_errors,
+)
+from service.settings import Settings
 
 T = TypeVar("T")
 JSON_EXPANSION = 24
@@ -28,15 +35,10 @@ def media_type(request: Request) -> str:
 
 
 async def json_body(request: Request, adapter: TypeAdapter[T]) -> T:
-    """Parse and validate a JSON body; 422 with pointers into the body on any problem, and before parsing if
-    its parsed form would not fit the per-request memory budget."""
+    """Parse and validate a JSON body; 422 with pointers into the body on any problem, and before parsing a
+    413 naming the largest JSON body the per-request memory budget holds if its parsed form would not fit."""
     raw = await request.body()
-    check_request_memory(
-        f"parsing the {len(raw) / 2**20:,.1f} MiB JSON body",
-        len(raw) * JSON_EXPANSION,
-        request.app.state.settings,
-        pointer="",
-    )
+    check_json_size(len(raw), request.app.state.settings)
     try:
         return adapter.validate_json(raw)
     except ValidationError as exc:
@@ -52,6 +54,26 @@ async def json_body(request: Request, adapter: TypeAdapter[T]) -> T:
         except ApiError:
             parsed = None
         raise validation_errors(exc.errors(include_url=False), parsed) from exc
+
+
+def check_json_size(n_bytes: int, settings: Settings) -> None:
+    """413 if a JSON body of ``n_bytes`` would take more than ``api_max_request_memory_mb`` to parse (about
+    JSON_EXPANSION bytes per byte of body), naming the largest that fits: a body too large for this server,
+    however small the arrays it describes."""
+    budget_mb = settings.api_max_request_memory_mb
+    largest = budget_mb * 2**20 / JSON_EXPANSION
+    if n_bytes > largest:
+        raise PayloadTooLarge(
+            f"The {n_bytes / 2**20:,.1f} MiB JSON body would take about {n_bytes * JSON_EXPANSION / 2**20:,.0f} "
+            f"MiB of memory to parse; JSON bodies up to {largest / 2**20:,.1f} MiB fit the per-request budget of "
+            f"{budget_mb:,} MiB (METAIRL_API_MAX_REQUEST_MEMORY_MB). Send large arrays as an .npz or CSV file.",
+            errors=[
+                {
+                    "pointer": "",
+                    "message": f"at most {largest / 2**20:,.1f} MiB of JSON (METAIRL_API_MAX_REQUEST_MEMORY_MB)",
+                }
+            ],
+        )
 
 
 async def form_body(request: Request) -> tuple[FormData, UploadFile]:

@@ -1,6 +1,6 @@
 """The per-request memory budget (``METAIRL_API_MAX_REQUEST_MEMORY_MB``): every upload kind is estimated
-before it is built and refused with a 422 naming the setting when over it; memory is handed back after a
-request that grew the process."""
+before it is built and refused with a 422 naming the setting when over it (a JSON body too large to parse
+within it: a 413 naming the largest that fits); memory is handed back after a request that grew the process."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from fastapi.testclient import TestClient
 
 from service.api import memory
 from service.api.app import create_app
+from service.api.bodies import JSON_EXPANSION
 from service.settings import Settings
 from tests.conftest import _new_key
 from tests.service.helpers import PLATE, make_demonstrator, make_task
@@ -34,14 +35,14 @@ def small(settings: Settings) -> Iterator[tuple[FastAPI, TestClient, dict[str, s
 
 
 def refused(response: Any) -> str:
-    """The message of a 422 that names the memory budget."""
+    """The message of a 422 that names the memory budget (a request that describes more than it holds)."""
     assert response.status_code == 422, response.text[:300]
     message: str = response.json()["errors"][0]["message"]
     assert SETTING in message, message
     return message
 
 
-def test_a_json_body_whose_parsed_form_exceeds_the_budget_is_422(
+def test_a_json_body_whose_parsed_form_exceeds_the_budget_is_413_naming_the_largest_that_fits(
     small: tuple[FastAPI, TestClient, dict[str, str]],
 ) -> None:
     _, client, auth = small
@@ -50,7 +51,12 @@ def test_a_json_body_whose_parsed_form_exceeds_the_budget_is_422(
     body = json.dumps({"trajectories": trajectories})
     assert len(body) > 2 * 2**20
     url = f"/v1/tasks/{task['id']}/demonstrations"
-    refused(client.post(url, content=body, headers=auth | {"Content-Type": "application/json"}))
+    response = client.post(url, content=body, headers=auth | {"Content-Type": "application/json"})
+    assert response.status_code == 413, response.text[:300]
+    assert response.headers["content-type"].startswith("application/problem+json")
+    largest = BUDGET_MB / JSON_EXPANSION  # MiB of JSON the budget holds
+    assert f"JSON bodies up to {largest:,.1f} MiB" in response.json()["detail"]
+    assert SETTING in response.json()["detail"]
 
 
 def test_a_csv_with_more_rows_than_the_budget_holds_is_422(
