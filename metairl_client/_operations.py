@@ -91,7 +91,7 @@ def npz_bytes(arrays: Mapping[str, np.ndarray]) -> bytes:
     return buffer.getvalue()
 
 
-def _states_actions(t: Trajectory | Mapping[str, Any], index: int) -> tuple[list[Any], list[Any]]:
+def _states_actions(t: Trajectory | Mapping[str, Any], index: int) -> tuple[Any, Any]:
     """(states, actions) of trajectory ``index``, a (states, actions) pair, an object with ``states`` and
     ``actions`` or the JSON body's ``{"states": …, "actions": …}``, as lists; `InvalidRequestError` for
     anything else."""
@@ -112,18 +112,13 @@ def _states_actions(t: Trajectory | Mapping[str, Any], index: int) -> tuple[list
     return _whole(states), _whole(actions)
 
 
-def _whole(values: Any) -> list[Any]:
-    """``values`` as a list, floats that are whole numbers (an array from ``np.loadtxt``) as integers, as
+def _whole(values: Any) -> Any:
+    """``values`` as JSON lists, floats that are whole numbers (an array from ``np.loadtxt``) as integers, as
     the engine's ``Trajectory.of`` reads them; anything else as given, for the service to name."""
     array = np.asarray(values)
-    if (
-        array.dtype.kind == "f"
-        and array.size
-        and np.all(np.isfinite(array))
-        and np.all(array == np.round(array))
-    ):
+    if array.dtype.kind == "f" and np.isfinite(array).all() and (array == np.round(array)).all():
         array = array.astype(np.int64)
-    return list(array.tolist()) if array.ndim else [array.tolist()]
+    return array.tolist()
 
 
 # -------------------------------------------------------------- service
