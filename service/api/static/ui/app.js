@@ -1403,12 +1403,21 @@ document.addEventListener("DOMContentLoaded", () => {
       .then(() => Promise.all([jobExists(run), jobExists(selected)]))
       .then(([runThere, selectedThere]) => {
         if (generation !== state.generation) return;
-        // A job deleted elsewhere closes its run page and results; one on another page of the list stays.
-        if (run !== null && state.run === run && !runThere) hideRun();
+        // A job deleted elsewhere closes its run page and results, saying so in place of any error its late
+        // answers reported; one on another page of the list stays.
+        const gone = new Set();
+        if (run !== null && state.run === run && !runThere) {
+          hideRun();
+          gone.add(run);
+        }
         if (selected !== null && state.selected === selected) {
           if (selectedThere) showResults(selected);
-          else hideResults();
+          else {
+            hideResults();
+            gone.add(selected);
+          }
         }
+        if (gone.size) showMessage(`Job ${[...gone].join(", ")} was deleted elsewhere: its pages are closed.`, "info");
         redrawPanels();
       })
       .catch((error) => {
@@ -1728,7 +1737,7 @@ async function loadStepHistory(id) {
     drawLossCurve($("loss-curve"), state.history);
   } catch (error) {
     h.reloading = false;
-    reportError(error);
+    if (call === state.runCall) reportError(error);
   }
 }
 
