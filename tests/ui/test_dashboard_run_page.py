@@ -502,7 +502,7 @@ def test_refresh_after_a_job_is_deleted_elsewhere_closes_its_run_page_and_result
     page.wait_for_selector("#results", state="hidden")
     assert page.locator("#run[data-job], #results[data-job]").count() == 0
     message = page.locator("#message")
-    assert message.inner_text() == f"Job {job_id} was deleted elsewhere: its pages are closed."
+    assert message.inner_text() == f"Deleted elsewhere: job {job_id}; its panels are closed."
     assert "info" in (message.get_attribute("class") or "")
     assert errors == []
 

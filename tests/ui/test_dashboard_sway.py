@@ -189,7 +189,9 @@ def test_deleting_a_demonstrator_or_refreshing_after_its_deletion_closes_its_pan
     page.wait_for_selector(f".dem[data-demonstrator='{elsewhere}']", state="detached")
     page.wait_for_selector("#sway", state="hidden")
     page.wait_for_selector("#motion", state="hidden")
-    assert not page.locator("#message").inner_text().startswith("404")
+    message = page.locator("#message")
+    assert message.inner_text() == f"Deleted elsewhere: demonstrator {elsewhere}; its panels are closed."
+    assert "info" in (message.get_attribute("class") or "")
     assert errors == []
 
 

@@ -1398,27 +1398,29 @@ document.addEventListener("DOMContentLoaded", () => {
   $("key-forget").addEventListener("click", forgetKey);
   $("refresh").addEventListener("click", () => {
     const generation = state.generation;
-    const { run, selected } = state;
+    const { run, selected, motion, sway } = state;
     loadEverything()
       .then(() => Promise.all([jobExists(run), jobExists(selected)]))
       .then(([runThere, selectedThere]) => {
         if (generation !== state.generation) return;
-        // A job deleted elsewhere closes its run page and results, saying so in place of any error its late
-        // answers reported; one on another page of the list stays.
+        // A job deleted elsewhere closes its run page and results, and a demonstrator's panels close with it;
+        // the message says so in place of any error their late answers reported. A job on another page of
+        // the list stays.
         const gone = new Set();
         if (run !== null && state.run === run && !runThere) {
           hideRun();
-          gone.add(run);
+          gone.add(`job ${run}`);
         }
         if (selected !== null && state.selected === selected) {
           if (selectedThere) showResults(selected);
           else {
             hideResults();
-            gone.add(selected);
+            gone.add(`job ${selected}`);
           }
         }
-        if (gone.size) showMessage(`Job ${[...gone].join(", ")} was deleted elsewhere: its pages are closed.`, "info");
         redrawPanels();
+        for (const id of [motion, sway]) if (id !== null && !state.demonstrators.has(id)) gone.add(`demonstrator ${id}`);
+        if (gone.size) showMessage(`Deleted elsewhere: ${[...gone].join(", ")}; its panels are closed.`, "info");
       })
       .catch((error) => {
         if (generation === state.generation) reportError(error);
