@@ -174,7 +174,8 @@ class FitConfig:
     alone."""
 
     tabular_choice: bool = True
-    """With an MDP without state features, sharing and a hold-out: whether the data may choose the tabular
+    """With an MDP without state features (or, without a layout, with features that only say where a state
+    is: `coordinates.features_are_positions`), sharing and a hold-out: whether the data may choose the tabular
     solver with shared rewards (``shared_maxent``) over the networks. Coordinates assume the reward is smooth
     in the place, as a terrain's cost is; a reward of small patches (objectworld's) it is not, and there the
     networks extrapolate a wrong trend over every state no demonstration reaches, while the solver leaves
@@ -234,7 +235,8 @@ class FitConfig:
     they learn from every step); the step kept is the one their held-out folds together choose (a K-fold
     cross-validated NLL, fit.HeldOutStopper). Averaging K fits cuts
     the variance of a reward learned from a few demonstrations; a step costs about K times as much.
-    0 (default): K = 4 for small fits, fewer as tasks × states grow, 1 from 32,768 (`ensemble_size`)."""
+    0 (default): K = 4 for small fits, fewer as tasks × states grow, 1 from 32,768 (`ensemble_size`); the
+    result's ``config`` states the K fitted."""
 
     seed: int = field(default=0, metadata=bounds(ge=0, le=MAX_SEED))
     """Seed of every random choice (initial weights, hold-out split): same seed, same result."""
@@ -323,7 +325,7 @@ MAX_AUTO_MEMBERS = 4
 def chooses_tabular_method(config: FitConfig, *, has_features: bool) -> bool:
     """Whether a fit may run both the networks and the tabular solver (`FitConfig.tabular_choice`): the
     networks' method, sharing and a hold-out, on an MDP without features (`fit.tabular_choice_applies` adds
-    the demonstrations it needs)."""
+    the demonstrations it needs and counts features that only say where a state is as none)."""
     return (
         config.tabular_choice
         and config.method == "meta_irl"

@@ -69,6 +69,24 @@ def move_graph(mdps: Sequence[MDP]) -> sp.csr_matrix:
     return (adjacency + adjacency.T).tocsr()
 
 
+def features_are_positions(mdps: Sequence[MDP], features: np.ndarray) -> bool:
+    """Whether ``features`` (S, F) say only where each state is: no two states share them, and the moves
+    between states shift them along at most ``n_actions`` directions (a shift and its reverse one direction),
+    so they are cells of a lattice the moves step along, such as each cell's (x, y). Such features tell the
+    networks nothing the transitions do not. Shifts are compared to 1e-6 of the features' largest range."""
+    n_states = mdps[0].n_states
+    if len(np.unique(features, axis=0)) < n_states:
+        return False
+    moves = sp.triu(move_graph(mdps), k=1).tocoo()
+    if moves.nnz == 0:
+        return False
+    span = float(np.ptp(features, axis=0).max()) or 1.0
+    shifts = np.round((features[moves.col] - features[moves.row]) / (span * 1e-6)).astype(np.int64)
+    leading = shifts[np.arange(len(shifts)), (shifts != 0).argmax(axis=1)]
+    directions = shifts * np.sign(leading)[:, None]  # a move and its reverse are one direction
+    return len(np.unique(directions, axis=0)) <= mdps[0].n_actions
+
+
 def graph_coordinates(mdps: Sequence[MDP], *, seed: int) -> np.ndarray | None:
     """Landmark MDS of the hop distances of the undirected union of the ``mdps``' transition graphs.
 

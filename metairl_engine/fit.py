@@ -36,7 +36,7 @@ from metairl_engine.config import (
     ensemble_size,
     sharing_block_count,
 )
-from metairl_engine.coordinates import COORDINATE_OCTAVES, state_coordinates
+from metairl_engine.coordinates import COORDINATE_OCTAVES, features_are_positions, state_coordinates
 from metairl_engine.demos import Trajectory, validate_trajectories, with_stays_at_ends
 from metairl_engine.errors import Cancelled, Diverged, InvalidInput, Issue, check
 from metairl_engine.evidence import NEXT_TO_VISITED
@@ -114,8 +114,17 @@ def fit(
 
 def tabular_choice_applies(tasks: Sequence[TaskData], config: FitConfig) -> bool:
     """`FitConfig.tabular_choice` is made (`config.chooses_tabular_method`) and every task has a
-    demonstration to hold out and one to keep."""
-    return chooses_tabular_method(config, has_features=tasks[0].mdp.features is not None) and all(
+    demonstration to hold out and one to keep. Features count as none where they only say where a state is
+    on an MDP without a layout (`coordinates.features_are_positions`: each cell's (x, y) as a lab may upload
+    it); a grid with a layout keeps its coordinates as features without the choice, whose folds would cost
+    several fits on every terrain and velocity grid (docs/method.md, "Features that only say where a state
+    is")."""
+    mdps = [t.mdp for t in tasks]
+    features = mdps[0].features
+    featureless = features is None or (
+        all(m.layout is None for m in mdps) and features_are_positions(mdps, features)
+    )
+    return chooses_tabular_method(config, has_features=not featureless) and all(
         len(t.trajectories) >= 2 for t in tasks
     )
 
@@ -972,7 +981,7 @@ def _evaluate(
         policies=policies.cpu().numpy().astype(np.float32),
         history=history,
         best_step=best_step,
-        config=config,
+        config=replace(config, ensemble=n_members),  # an automatic ensemble's K stated: a refit fits as many
         baseline_spread=member_spread(base_members),
         reward_spread=member_spread(members),
         shrinkage=shrinkage,

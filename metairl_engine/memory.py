@@ -126,8 +126,10 @@ def fit_memory(
     counts the tensors it names at their largest (e.g. every state as needed by the networks); small
     tensors and Python objects fall under `RUNTIME`.
     """
-    if chooses_tabular_method(config, has_features=n_features is not None):
-        # The networks and the tabular solver run one after the other: the peak is the larger one's.
+    if chooses_tabular_method(config, has_features=False):
+        # The networks and the tabular solver run one after the other: the peak is the larger one's. Counted
+        # with features too: features that only say where a state is get the choice as well
+        # (`fit.tabular_choice_applies`), which the sizes alone do not tell.
         estimate = functools.partial(
             fit_memory,
             n_tasks=n_tasks,

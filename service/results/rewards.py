@@ -224,7 +224,8 @@ def not_stored(quantity: Quantity, reward_id: str) -> Conflict:
     if quantity == "uncertainty":
         return Conflict(
             f"Reward {reward_id} has no uncertainty: its fit ran a single ensemble member (a tabular method, "
-            "among them the shared solver that config tabular_choice picks for an MDP without features where it "
+            "among them the shared solver that config tabular_choice picks for an MDP without features (or whose "
+            "features only say where a state is) where it "
             "predicts held-out demonstrations better; config ensemble 1; or a large fit's automatic choice), so "
             "there is no spread across members, or it was stored before the spread was kept. "
             "?quantity=evidence says where the demonstrations give evidence. For a spread, rerun the job with "

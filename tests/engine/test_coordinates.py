@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from metairl_engine import MDP, FitConfig, TaskData
-from metairl_engine.coordinates import graph_coordinates, state_coordinates
+from metairl_engine.coordinates import features_are_positions, graph_coordinates, state_coordinates
 from metairl_engine.fit import fit
 from metairl_engine.grids import grid_mdp, layout_features
 from metairl_engine.metrics import pearson
@@ -71,3 +71,27 @@ def test_a_featureless_terrain_is_learned_far_better_with_coordinates_than_one_h
     default, one_hot = accuracy(FitConfig()), accuracy(FitConfig(tabular_inputs="one_hot"))
     assert default > one_hot + 0.1 and default > 0.3
     assert replace(FitConfig(), tabular_inputs="one_hot").to_dict()["tabular_inputs"] == "one_hot"
+
+
+def test_features_that_are_each_cells_place_in_any_units_are_positions() -> None:
+    from metairl_engine.sim.fourrooms import make_four_rooms
+
+    rooms = make_four_rooms(seed=0).mdp
+    assert rooms.features is not None and rooms.layout is None
+    assert features_are_positions([rooms], rooms.features)
+    assert features_are_positions([rooms], rooms.features * np.float32(0.1) + np.float32(3.0))
+    eight = grid_mdp(width=5, height=4, moves=8, stay=True, gamma=0.9)
+    assert eight.features is not None and features_are_positions([eight], eight.features)
+
+
+def test_features_that_describe_more_than_the_place_or_repeat_on_two_states_are_not_positions() -> None:
+    from metairl_engine.sim.objectworld import make_objectworld
+
+    world = make_objectworld(seed=0, size=8)[0].mdp
+    assert world.features is not None and not features_are_positions([world], world.features)
+    grid = grid_mdp(width=4, height=4, gamma=0.9)
+    assert grid.features is not None
+    rows_only = grid.features[:, 1:]  # the row alone: four states share each value
+    assert not features_are_positions([grid], rows_only)
+    with_terrain = np.concatenate([grid.features, np.arange(16, dtype=np.float32)[:, None] ** 2], axis=1)
+    assert not features_are_positions([grid], with_terrain)

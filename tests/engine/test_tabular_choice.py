@@ -121,6 +121,20 @@ def test_no_choice_with_features_or_a_single_demonstration_per_task() -> None:
     assert set(steps) == {QUICK.max_steps} and result.config.tabular_choice is True
 
 
+def test_features_that_only_say_where_a_state_is_count_as_none_without_a_layout() -> None:
+    world = make_world(size=8, n_hills=2, seed=0)
+    sims = make_tasks(world, n_tasks=2, n_demos=3, seed=1)
+    assert world.mdp.features is not None and world.mdp.layout is not None
+    on_grid = [TaskData(world.mdp, s.trajectories) for s in sims]
+    assert not tabular_choice_applies(on_grid, QUICK)  # a grid keeps its coordinates as features
+    cells = np.arange(world.mdp.n_states)
+    xy = np.stack([cells % 8, cells // 8], axis=1).astype(np.float32)
+    uploaded = replace(world.mdp, features=xy, layout=None)
+    assert tabular_choice_applies([TaskData(uploaded, s.trajectories) for s in sims], QUICK)
+    height = replace(world.mdp, features=np.concatenate([xy, world.cost[:, None]], axis=1), layout=None)
+    assert not tabular_choice_applies([TaskData(height, s.trajectories) for s in sims], QUICK)
+
+
 def test_a_cost_smooth_in_the_place_stays_with_the_networks() -> None:
     """A terrain's cost carries over between neighbouring places, as coordinates assume: the networks predict
     the held-out demonstrations better than a solver that leaves unvisited states at 0."""
