@@ -7,6 +7,7 @@ import asyncio
 import contextlib
 import copy
 from collections.abc import AsyncIterator, Callable, Iterable, Mapping, Sequence
+from os import PathLike
 from pathlib import Path
 from types import TracebackType
 from typing import IO, Any, TypeVar
@@ -198,8 +199,9 @@ class AsyncClient:
         """`PUT /v1/tasks/{id}/true-reward`: the simulation's ground truth, one value per state."""
         await self._call(ops.put_true_reward(task_id, values))
 
-    async def get_true_reward(self, task_id: str) -> dict[str, Any]:
-        """`GET /v1/tasks/{id}/true-reward`: the stored ground truth (``values``, ``sha256``, …)."""
+    async def get_true_reward(self, task_id: str) -> np.ndarray:
+        """`GET /v1/tasks/{id}/true-reward?format=npy`: the stored ground truth as float64, one value per state,
+        as `reward_values` gives a learned reward (`NotFoundError` when none was set)."""
         return await self._call(ops.get_true_reward(task_id))
 
     async def add_demonstrations(
@@ -220,6 +222,23 @@ class AsyncClient:
     def iter_demonstrations(self, task_id: str, *, page_size: int = 100) -> AsyncIterator[dict[str, Any]]:
         """Every demonstration of the task, page after page."""
         return self._pages(lambda cursor: ops.list_demonstrations(task_id, page_size, cursor))
+
+    async def upload_demonstrations(self, task_id: str, file: str | PathLike[str] | bytes) -> str:
+        """`POST /v1/tasks/{id}/demonstrations` with a CSV file (a path, or its bytes); the upload batch's id."""
+        return await self._call(ops.upload_demonstrations(task_id, file))
+
+    async def get_demonstrations(self, task_id: str, batch_id: str) -> dict[str, Any]:
+        """`GET /v1/tasks/{id}/demonstrations/{batch_id}`: one upload batch with its ``trajectories``."""
+        return await self._call(ops.get_demonstrations(task_id, batch_id))
+
+    async def download_demonstrations(self, task_id: str, batch_id: str) -> bytes:
+        """`GET /v1/tasks/{id}/demonstrations/{batch_id}?format=csv`: the batch as the CSV an upload takes."""
+        return await self._call(ops.download_demonstrations(task_id, batch_id))
+
+    async def delete_demonstrations(self, task_id: str, batch_id: str) -> None:
+        """`DELETE /v1/tasks/{id}/demonstrations/{batch_id}` with the task's jobs that finished after it was
+        uploaded (`ConflictError` while a job on the task is queued or running)."""
+        await self._call(ops.delete_demonstrations(task_id, batch_id))
 
     # -------------------------------------------------------------- recordings
 

@@ -9,6 +9,7 @@ import contextlib
 import copy
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from os import PathLike
 from pathlib import Path
 from types import TracebackType
 from typing import IO, Any, TypeVar
@@ -221,8 +222,9 @@ class Client:
         """`PUT /v1/tasks/{id}/true-reward`: the simulation's ground truth, one value per state."""
         self._call(ops.put_true_reward(task_id, values))
 
-    def get_true_reward(self, task_id: str) -> dict[str, Any]:
-        """`GET /v1/tasks/{id}/true-reward`: the stored ground truth (``values``, ``sha256``, …)."""
+    def get_true_reward(self, task_id: str) -> np.ndarray:
+        """`GET /v1/tasks/{id}/true-reward?format=npy`: the stored ground truth as float64, one value per state,
+        as `reward_values` gives a learned reward (`NotFoundError` when none was set)."""
         return self._call(ops.get_true_reward(task_id))
 
     def add_demonstrations(self, task_id: str, trajectories: Iterable[Trajectory | Mapping[str, Any]]) -> str:
@@ -241,6 +243,27 @@ class Client:
     def iter_demonstrations(self, task_id: str, *, page_size: int = 100) -> Iterator[dict[str, Any]]:
         """Every demonstration of the task, page after page."""
         return self._pages(lambda cursor: ops.list_demonstrations(task_id, page_size, cursor))
+
+    def upload_demonstrations(self, task_id: str, file: str | PathLike[str] | bytes) -> str:
+        """`POST /v1/tasks/{id}/demonstrations` with a CSV file of columns ``trajectory,step,state,action`` (the
+        final state's row may leave ``action`` empty), given as a path or as the file's bytes. Returns the upload
+        batch's id; errors name the trajectory label and the CSV line."""
+        return self._call(ops.upload_demonstrations(task_id, file))
+
+    def get_demonstrations(self, task_id: str, batch_id: str) -> dict[str, Any]:
+        """`GET /v1/tasks/{id}/demonstrations/{batch_id}`: one upload batch (``n_trajectories``, ``format``, …)
+        with its ``trajectories`` as ``{"states": […], "actions": […]}``, which `add_demonstrations` takes back."""
+        return self._call(ops.get_demonstrations(task_id, batch_id))
+
+    def download_demonstrations(self, task_id: str, batch_id: str) -> bytes:
+        """`GET /v1/tasks/{id}/demonstrations/{batch_id}?format=csv`: the batch as the CSV
+        `upload_demonstrations` takes."""
+        return self._call(ops.download_demonstrations(task_id, batch_id))
+
+    def delete_demonstrations(self, task_id: str, batch_id: str) -> None:
+        """`DELETE /v1/tasks/{id}/demonstrations/{batch_id}` with the task's jobs that finished after it was
+        uploaded (`ConflictError` while a job on the task is queued or running)."""
+        self._call(ops.delete_demonstrations(task_id, batch_id))
 
     # -------------------------------------------------------------- recordings
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import io
 import json
 from collections.abc import Iterable, Mapping, Sequence
+from os import PathLike
 from pathlib import Path
 from typing import Any, Literal
 from urllib.parse import quote
@@ -237,9 +238,9 @@ def put_true_reward(task_id: str, values: np.ndarray | Sequence[float]) -> Call[
     return Call("PUT", f"/v1/tasks/{_segment(task_id)}/true-reward", _nothing, json=body)
 
 
-def get_true_reward(task_id: str) -> Call[dict[str, Any]]:
-    """`GET /v1/tasks/{id}/true-reward`."""
-    return Call("GET", f"/v1/tasks/{_segment(task_id)}/true-reward", _object)
+def get_true_reward(task_id: str) -> Call[np.ndarray]:
+    """`GET /v1/tasks/{id}/true-reward?format=npy` as float64, as `reward_values` reads a learned reward."""
+    return Call("GET", f"/v1/tasks/{_segment(task_id)}/true-reward", _npy, params={"format": "npy"})
 
 
 def add_demonstrations(task_id: str, trajectories: Iterable[Trajectory | Mapping[str, Any]]) -> Call[str]:
@@ -253,10 +254,40 @@ def add_demonstrations(task_id: str, trajectories: Iterable[Trajectory | Mapping
     return Call("POST", f"/v1/tasks/{_segment(task_id)}/demonstrations", _id, json=body)
 
 
+def upload_demonstrations(task_id: str, file: str | PathLike[str] | bytes) -> Call[str]:
+    """`POST /v1/tasks/{id}/demonstrations` with a CSV file (multipart): a path, or the file's bytes."""
+    if isinstance(file, bytes):
+        content, filename = file, "demonstrations.csv"
+    else:
+        content, filename = Path(file).read_bytes(), Path(file).name
+    files = {"file": (filename, content, "text/csv")}
+    return Call("POST", f"/v1/tasks/{_segment(task_id)}/demonstrations", _id, files=files)
+
+
 def list_demonstrations(task_id: str, limit: int | None, cursor: str | None) -> Call[Page]:
     """`GET /v1/tasks/{id}/demonstrations`."""
     path = f"/v1/tasks/{_segment(task_id)}/demonstrations"
     return Call("GET", path, _page, params=_paging(limit, cursor))
+
+
+def _batch_path(task_id: str, batch_id: str) -> str:
+    """The path of one demonstration upload of a task."""
+    return f"/v1/tasks/{_segment(task_id)}/demonstrations/{_segment(batch_id)}"
+
+
+def get_demonstrations(task_id: str, batch_id: str) -> Call[dict[str, Any]]:
+    """`GET /v1/tasks/{id}/demonstrations/{batch_id}` as JSON."""
+    return Call("GET", _batch_path(task_id, batch_id), _object)
+
+
+def download_demonstrations(task_id: str, batch_id: str) -> Call[bytes]:
+    """`GET /v1/tasks/{id}/demonstrations/{batch_id}?format=csv`."""
+    return Call("GET", _batch_path(task_id, batch_id), _content, params={"format": "csv"})
+
+
+def delete_demonstrations(task_id: str, batch_id: str) -> Call[None]:
+    """`DELETE /v1/tasks/{id}/demonstrations/{batch_id}`."""
+    return Call("DELETE", _batch_path(task_id, batch_id), _nothing)
 
 
 # -------------------------------------------------------------- recordings

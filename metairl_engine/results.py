@@ -86,7 +86,9 @@ class FitResult:
     ``shrinkage`` and ``sparsity`` are the λ and q of ``rewards`` = baseline + λ·S_q(task reward − baseline)
     chosen by held-out likelihood, S_q zeroing the smallest share q of each task's deviations from the
     baseline (`FitConfig.shrink_deviations`, `shrinkage.sparse_deviation`; 1 and 0: the task rewards as
-    learned).
+    learned). ``config`` is the config as fitted: what it left to the fit is stated as the fit chose it
+    (``ensemble`` 0 as the members fitted, ``task_features`` auto, ``tabular_choice``'s ``method``), so a
+    refit with it gives the same result.
     """
 
     baseline: np.ndarray

@@ -5,19 +5,22 @@ from __future__ import annotations
 import csv
 import logging
 import math
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import Any, TypeVar
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from pydantic import BaseModel, ValidationError
 from sqlalchemy.exc import OperationalError
 from sqlalchemy.exc import TimeoutError as PoolTimeout
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
-from metairl_engine.errors import InvalidInput
+from metairl_engine.errors import InvalidInput, Issue
 
+M = TypeVar("M", bound=BaseModel)
+T = TypeVar("T")
 PROBLEM_JSON = "application/problem+json"
 HTTP_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
 log = logging.getLogger(__name__)
@@ -172,19 +175,52 @@ def _child(node: Any, part: str | int) -> tuple[bool, Any]:
     return False, None
 
 
+def _message(error: Any) -> str:
+    """What a 422 says of one pydantic error: pydantic's message, but a missing union tag is required, an unknown
+    field maybe misspelt, and NaN or infinity not finite (it fails every bound)."""
+    if error.get("type") == "union_tag_not_found":
+        return "is required"
+    if error.get("type") == "extra_forbidden":
+        return "is not a field of this body (a misspelt name?); see the schema at /openapi.json"
+    value = error.get("input")
+    if isinstance(value, float) and not math.isfinite(value):
+        return f"must be a finite number, not {value}"
+    return str(error.get("msg", "is invalid"))
+
+
+def body_issues(error: ValidationError, body: Any) -> list[Issue]:
+    """Pydantic's errors of a body, or part of one, that a route validates itself, as issues with pointers into
+    ``body`` worded as `validation_errors` words them: they join the route's own issues in one 422."""
+    return [
+        Issue(pointer_from_loc(tuple(e["loc"]) + _tag_field(e), body), _message(e))
+        for e in error.errors(include_url=False)
+    ]
+
+
+def gathering(issues: list[Issue], stage: Callable[[], T]) -> T | None:
+    """``stage()``, or None with its `InvalidInput`'s issues added to ``issues``: a later stage still runs, so
+    a request's problems come in one answer rather than one stage at a time."""
+    try:
+        return stage()
+    except InvalidInput as exc:
+        issues.extend(exc.issues)
+        return None
+
+
+def validated(model: type[M], body: Any) -> M:
+    """``body`` as a ``model``, or `InvalidInput` with an issue per problem (`body_issues`)."""
+    try:
+        return model.model_validate(body)
+    except ValidationError as exc:
+        raise InvalidInput(body_issues(exc, body)) from None
+
+
 def validation_errors(errors: Sequence[Any], body: Any) -> Unprocessable:
     """Pydantic errors as a 422: body errors get pointers, query/path/header errors name the parameter."""
     items: list[dict[str, str]] = []
     for e in errors:
         loc = tuple(e.get("loc", ())) + _tag_field(e)
-        message = str(e.get("msg", "is invalid"))
-        if e.get("type") == "union_tag_not_found":
-            message = "is required"
-        elif e.get("type") == "extra_forbidden":
-            message = "is not a field of this body (a misspelt name?); see the schema at /openapi.json"
-        value = e.get("input")
-        if isinstance(value, float) and not math.isfinite(value):  # NaN fails every bound: say why
-            message = f"must be a finite number, not {value}"
+        message = _message(e)
         if loc and loc[0] in ("query", "path", "header", "cookie"):
             name = str(loc[1]) if len(loc) > 1 else ""  # a repeated parameter's item adds its index
             items.append(

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from metairl_engine.errors import Issue
 from service.problems import Unprocessable
 from service.settings import Settings
 
@@ -31,6 +32,37 @@ def check_array_elements(name: str, shape: Sequence[int], settings: Settings, *,
         )
 
 
+def mdp_size_issues(
+    n_states: int,
+    n_actions: int,
+    n_features: int | None,
+    settings: Settings,
+    *,
+    pointer: str,
+    what: str = "the MDP",
+) -> list[Issue]:
+    """An issue at `pointer` if states × actions exceeds `max_state_actions`, another if the features are wider
+    than `max_features`."""
+    issues = []
+    if n_states * n_actions > settings.max_state_actions:
+        issues.append(
+            Issue(
+                pointer,
+                f"{what} has {n_states:,} states × {n_actions:,} actions = {n_states * n_actions:,}; at most "
+                f"{settings.max_state_actions:,} (METAIRL_MAX_STATE_ACTIONS)",
+            )
+        )
+    if n_features is not None and n_features > settings.max_features:
+        issues.append(
+            Issue(
+                pointer,
+                f"{what} has {n_features:,} features per state; at most {settings.max_features:,} "
+                "(METAIRL_MAX_FEATURES)",
+            )
+        )
+    return issues
+
+
 def check_mdp_size(
     n_states: int,
     n_actions: int,
@@ -40,29 +72,22 @@ def check_mdp_size(
     pointer: str,
     what: str = "the MDP",
 ) -> None:
-    """422 if states × actions exceeds `max_state_actions` or the features are wider than `max_features`."""
-    if n_states * n_actions > settings.max_state_actions:
-        raise too_large(
-            pointer,
-            f"{what} has {n_states:,} states × {n_actions:,} actions = {n_states * n_actions:,}; at most "
-            f"{settings.max_state_actions:,} (METAIRL_MAX_STATE_ACTIONS)",
-        )
-    if n_features is not None and n_features > settings.max_features:
-        raise too_large(
-            pointer,
-            f"{what} has {n_features:,} features per state; at most {settings.max_features:,} "
-            "(METAIRL_MAX_FEATURES)",
-        )
+    """422 naming the first of `mdp_size_issues`, if any."""
+    issues = mdp_size_issues(n_states, n_actions, n_features, settings, pointer=pointer, what=what)
+    if issues:
+        raise too_large(issues[0].pointer, issues[0].message)
 
 
-def check_hidden(hidden: Sequence[int], settings: Settings) -> None:
-    """422 at /config/hidden if a hidden layer is wider than `max_hidden_units`."""
-    for i, units in enumerate(hidden):
-        if units > settings.max_hidden_units:
-            raise too_large(
-                f"/config/hidden/{i}",
-                f"asks for {units:,} hidden units; at most {settings.max_hidden_units:,} (METAIRL_MAX_HIDDEN_UNITS)",
-            )
+def hidden_issues(hidden: Sequence[int], settings: Settings) -> list[Issue]:
+    """An issue at /config/hidden/<i> per hidden layer wider than `max_hidden_units`."""
+    return [
+        Issue(
+            f"/config/hidden/{i}",
+            f"asks for {units:,} hidden units; at most {settings.max_hidden_units:,} (METAIRL_MAX_HIDDEN_UNITS)",
+        )
+        for i, units in enumerate(hidden)
+        if units > settings.max_hidden_units
+    ]
 
 
 def check_request_memory(what: str, nbytes: float, settings: Settings, *, pointer: str) -> None:

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any, Literal
 
-from pydantic import ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
+from metairl_engine import Trajectory
 from service.domain.common import Body, Integer, Resource, UploadFormat
 from service.store.models.demonstrators import Demonstration
 
@@ -16,6 +17,16 @@ Index = Annotated[Integer, Field(ge=-(2**31), le=2**31 - 1)]
 EXAMPLE_IN: JsonDict = {
     "trajectories": [{"states": [0, 1, 2], "actions": [1, 1]}, {"states": [1, 2], "actions": [1, 1]}]
 }
+EXAMPLE_OUT: dict[str, Any] = {
+    "id": "trj_V0sN3kP8xR2qL5mT9wB1cD",
+    "created_at": "2026-01-05T10:03:00Z",
+    "task_id": "task_7cXw2mB9tQk4Lr0sHn5yZa",
+    "format": "json",
+    "n_trajectories": 2,
+    "n_steps": 4,
+}
+BatchFormat = Literal["json", "csv"]
+"""How `GET /v1/tasks/{task_id}/demonstrations/{batch_id}` answers: JSON, or the CSV an upload takes."""
 
 
 class TrajectoryIn(Body):
@@ -36,20 +47,7 @@ class DemonstrationsIn(Body):
 class DemonstrationOut(Resource):
     """One uploaded batch of a task's demonstrations."""
 
-    model_config = ConfigDict(
-        json_schema_extra={
-            "examples": [
-                {
-                    "id": "trj_V0sN3kP8xR2qL5mT9wB1cD",
-                    "created_at": "2026-01-05T10:03:00Z",
-                    "task_id": "task_7cXw2mB9tQk4Lr0sHn5yZa",
-                    "format": "json",
-                    "n_trajectories": 2,
-                    "n_steps": 4,
-                }
-            ]
-        }
-    )
+    model_config = ConfigDict(json_schema_extra={"examples": [EXAMPLE_OUT]})
 
     task_id: str
     format: UploadFormat = Field(
@@ -62,3 +60,30 @@ class DemonstrationOut(Resource):
     def of(cls, row: Demonstration) -> DemonstrationOut:
         """The API view of a demonstration row."""
         return cls.model_validate(row)
+
+
+class TrajectoryOut(BaseModel):
+    """One stored demonstration, as uploaded: `states` one longer than `actions` where a final state was given."""
+
+    states: list[int]
+    actions: list[int]
+
+
+class DemonstrationBatchOut(DemonstrationOut):
+    """One upload batch with its trajectories, in upload order (the body a JSON upload of them takes)."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [EXAMPLE_OUT | EXAMPLE_IN]})
+
+    trajectories: list[TrajectoryOut]
+
+    @classmethod
+    def of_batch(cls, row: Demonstration, trajectories: list[Trajectory]) -> DemonstrationBatchOut:
+        """The API view of a batch row with its trajectories (`service.store.loaders.batch_trajectories`)."""
+        return cls.model_validate(
+            DemonstrationOut.of(row).model_dump()
+            | {
+                "trajectories": [
+                    {"states": t.states.tolist(), "actions": t.actions.tolist()} for t in trajectories
+                ]
+            }
+        )

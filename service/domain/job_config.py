@@ -2,8 +2,9 @@
 
 Each setting's type, default, range (the field's `bounds` metadata) and description (its docstring in
 `metairl_engine/config.py`) come from `FitConfig`, so the OpenAPI schema documents every setting and cannot
-drift from the engine. Types and ranges are checked here, as 422s naming ``/config/<field>``; what needs the
-demonstrator's MDPs (``baseline_features``) is checked at submission (`service.jobs.submit`).
+drift from the engine. Types and ranges are checked here (`valid_settings`), as issues naming
+``/config/<field>`` that join the submission's other checks (`service.jobs.submit`: the size limits, what
+needs the demonstrator's MDPs, ``baseline_features``) in one 422.
 """
 
 from __future__ import annotations
@@ -15,10 +16,12 @@ from dataclasses import fields
 from functools import cache
 from typing import Annotated, Any, get_args, get_origin, get_type_hints
 
-from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictInt, create_model
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictInt, ValidationError, create_model
 
 from metairl_engine.config import FitConfig
-from service.domain.common import Number
+from metairl_engine.errors import Issue
+from service.domain.common import AsSent, Number
+from service.problems import body_issues
 
 
 @cache
@@ -78,9 +81,28 @@ JobConfig = config_model()
 """A job's fit settings (`FitConfig`'s contract names); omitted settings take their defaults."""
 
 
-def fit_config(config: BaseModel | None) -> FitConfig:
-    """The engine's `FitConfig` of a validated `JobConfig` (None: every default)."""
-    return FitConfig() if config is None else FitConfig.from_dict(config.model_dump())
+ConfigAsSent = Annotated[Any, AsSent(JobConfig | None)]
+"""A submission's ``config`` as it came, documented as `JobConfig`: `valid_settings` checks it beside the
+submission's other checks (`service.jobs.submit`)."""
+
+
+def valid_settings(sent: Any) -> tuple[BaseModel, list[Issue]]:
+    """A submission's ``config`` as sent (None: every default) as a `JobConfig` of the settings that pass their
+    type and range checks, the others left at their defaults, with an issue at ``/config/...`` per problem:
+    the checks of the valid settings still run, so a bad type and a hidden layer over the limit come in one
+    answer."""
+    try:
+        return JobConfig.model_validate({} if sent is None else sent), []
+    except ValidationError as exc:
+        issues = [Issue(f"/config{i.pointer}", i.message) for i in body_issues(exc, sent)]
+        failed = {e["loc"][0] for e in exc.errors() if e["loc"]}
+        kept = {k: v for k, v in sent.items() if k not in failed} if isinstance(sent, dict) else {}
+        return JobConfig.model_validate(kept), issues
+
+
+def fit_config(config: BaseModel) -> FitConfig:
+    """The engine's `FitConfig` of a validated `JobConfig`; `InvalidInput` if it fails the engine's own checks."""
+    return FitConfig.from_dict(config.model_dump())
 
 
 NETWORKS = ("meta_irl",)

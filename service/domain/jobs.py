@@ -4,15 +4,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from datetime import datetime
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, computed_field
 from pydantic_core import to_json
 from sqlalchemy import Row
 
-from service.domain.common import Body, Resource
-from service.domain.job_config import JobConfig, ignored_settings
+from service.domain.common import AsSent, Body, Resource
+from service.domain.job_config import ConfigAsSent, ignored_settings
 from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, JobEvent
 
@@ -59,11 +59,16 @@ class JobIn(Body):
         description="Tasks to fit together (same states and features, each with demonstrations); "
         "default: every task of the demonstrator.",
     )
-    config: JobConfig | None = Field(  # type: ignore[valid-type]
+    config: ConfigAsSent = Field(
         default=None,
         description="Fit settings; omitted settings take their defaults (each setting's schema gives its default, "
         "range and meaning). An unknown or invalid one is a 422 naming `/config/<field>`.",
     )
+
+
+JobSubmission = Annotated[dict[str, Any], AsSent(JobIn, sent=dict[str, Any])]
+"""The body of `POST /v1/jobs`: any JSON object, documented as `JobIn`; `service.jobs.submit` checks it with the
+checks that need the lab's tasks, so every problem of a submission comes in one 422."""
 
 
 class JobProgress(BaseModel):
@@ -116,7 +121,7 @@ class JobOut(Resource):
     status: JobStatus = Field(description="queued, running, succeeded, failed or cancelled (contract).")
     config: dict[str, Any] = Field(
         description="Every fit setting used, defaults filled in; once succeeded, as fitted (a `task_features` "
-        "`auto` shows the choice the fit made)."
+        "`auto` shows the choice the fit made, an `ensemble` 0 the members fitted)."
     )
     progress: JobProgress | None = Field(description="Null until the first step is reported.")
     error: str | None = Field(description="When failed: what went wrong and what to change.")

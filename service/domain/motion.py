@@ -4,11 +4,11 @@ into."""
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from service.domain.common import Body
+from service.domain.common import AsSent, Body
 
 UNITS: dict[str, Any] = {
     "peak_reach": "x, y units (as uploaded)",
@@ -181,6 +181,10 @@ class MotionComparisonIn(Body):
     a: str = Field(description="The reference demonstrator (`dem_…`).")
     b: str = Field(description="The demonstrator compared with it: differences are b minus a.")
 
+
+MotionComparisonSubmission = Annotated[dict[str, Any], AsSent(MotionComparisonIn, sent=dict[str, Any])]
+"""The body of `POST /v1/motion-comparisons`: any JSON object, documented as `MotionComparisonIn`; the route
+checks it with its check that `b` is not `a`, so every problem comes in one 422."""
 
 COMPARISON_IN_EXAMPLES: dict[str, Any] = {
     "sessions": {

@@ -194,7 +194,10 @@ class RecordingTask(BaseModel):
     )
     task_id: str
     created: bool = Field(description="True if the upload created the task, false if it joined it.")
-    demonstration_id: str = Field(description="The demonstration batch holding these segments.")
+    demonstration_id: str | None = Field(
+        description="The demonstration batch holding these segments; null once that batch was deleted "
+        "(`DELETE /v1/tasks/{task_id}/demonstrations/{batch_id}`)."
+    )
     n_trajectories: int = Field(description="Segments (out-and-back movements) added.")
     n_steps: int = Field(description="Grid moves added over those segments.")
 

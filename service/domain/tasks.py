@@ -4,12 +4,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from datetime import datetime
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
 from service.domain.common import Body, Metadata, MetadataIn, Name, Number, Resource
 from service.store.models.demonstrators import Task, TrueReward
+
+TrueRewardFormat = Literal["json", "npy", "csv"]
+"""How `GET /v1/tasks/{task_id}/true-reward` answers, as a learned reward's download does (no png)."""
 
 EXAMPLE_IN: JsonDict = {
     "name": "reach forward",
@@ -91,7 +95,7 @@ class TrueRewardIn(Body):
 
 
 class TrueRewardOut(BaseModel):
-    """A stored true reward; `values` only when asked for with GET."""
+    """A stored true reward with its values as stored (float32): what PUT answers and GET reads back."""
 
     model_config = ConfigDict(
         json_schema_extra={
@@ -111,11 +115,11 @@ class TrueRewardOut(BaseModel):
     n_states: int
     sha256: str
     updated_at: datetime
-    values: list[float] | None = None
+    values: list[float] = Field(description="One value per state, as stored (float32).")
 
     @classmethod
-    def of(cls, row: TrueReward, *, sha256: str, values: list[float] | None = None) -> TrueRewardOut:
-        """The API view of a true-reward row; ``values`` only for GET."""
+    def of(cls, row: TrueReward, *, sha256: str, values: list[float]) -> TrueRewardOut:
+        """The API view of a true-reward row with its stored values."""
         return cls(
             task_id=row.task_id,
             n_states=row.n_states,

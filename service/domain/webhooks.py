@@ -4,11 +4,11 @@ deliveries, and the one answer that shows the secret."""
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from service.domain.common import Body, Resource
+from service.domain.common import AsSent, Body, Resource
 from service.store.models.webhooks import Webhook, WebhookDelivery
 
 EventName = Literal["job.succeeded", "job.failed", "job.cancelled"]
@@ -56,6 +56,11 @@ class WebhookIn(Body):
         min_length=1,
         description="Event types to receive (default: all three).",
     )
+
+
+WebhookSubmission = Annotated[dict[str, Any], AsSent(WebhookIn, sent=dict[str, Any])]
+"""The body of `POST /v1/webhooks`: any JSON object, documented as `WebhookIn`; the route checks it with the
+URL's target, so a bad event and a private host come in one 422."""
 
 
 class DeliveryOut(BaseModel):

@@ -1,4 +1,5 @@
-"""Demonstrations uploaded as CSV with columns ``trajectory,step,state,action`` (docs/api.md, "Demonstrations").
+"""Demonstrations uploaded as CSV with columns ``trajectory,step,state,action`` (docs/api.md, "Demonstrations"),
+and stored ones written back in the same columns (`to_csv`).
 
 Rows are grouped by `trajectory` (in order of first appearance) and sorted by `step`; the last row of a
 trajectory may leave `action` empty to give the final state. Errors name the trajectory, the step and the
@@ -7,8 +8,11 @@ CSV line.
 
 from __future__ import annotations
 
+import csv
+import io
 import re
 from array import array
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -95,6 +99,23 @@ def parse_csv(data: bytes, settings: Settings) -> CsvDemonstrations:
         raise csv_error([("/trajectories", "the CSV has no data rows")])
     arrays = {name: np.frombuffer(column, dtype=np.int64) for name, column in columns.items()}
     return _assemble(list(labels), arrays)
+
+
+def to_csv(
+    trajectories: Iterable[tuple[str, Sequence[int] | np.ndarray, Sequence[int] | np.ndarray]],
+) -> bytes:
+    """The CSV `parse_csv` reads back: the header `COLUMNS`, then a row per state of each (label, states,
+    actions), the final state's action left empty (a trajectory without one has an action on every row)."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(COLUMNS)
+    for label, states, actions in trajectories:
+        acts = np.asarray(actions).tolist()
+        writer.writerows(
+            [label, step, state, acts[step] if step < len(acts) else ""]
+            for step, state in enumerate(np.asarray(states).tolist())
+        )
+    return buffer.getvalue().encode()
 
 
 def _assemble(labels: list[str], columns: dict[str, np.ndarray]) -> CsvDemonstrations:

@@ -6,20 +6,21 @@ for reasons no request check can foresee.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from typing import TypeVar
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from metairl_engine.config import baseline_column_issues
-from metairl_engine.errors import InvalidInput, Issue, check
+from metairl_engine.config import FitConfig, baseline_column_issues
+from metairl_engine.errors import Issue, check
 from metairl_engine.grids import input_columns
 from metairl_engine.mdp import Layout
-from service.domain.job_config import fit_config
+from service.domain.job_config import fit_config, valid_settings
 from service.domain.jobs import JobIn
+from service.problems import gathering, validated
 from service.settings import Settings
-from service.sizes import check_hidden, check_mdp_size
+from service.sizes import hidden_issues, mdp_size_issues
 from service.store.blobs import blob_sha256
 from service.store.ids import new_id
 from service.store.models.base import utcnow
@@ -29,28 +30,28 @@ from service.store.models.jobs import Job, JobEvent
 from service.store.models.mdps import Mdp
 
 
-def create_job(session: Session, *, lab_id: str, body: JobIn, settings: Settings) -> Job:
-    """Validate the submission and add the queued job (flushed; the caller commits before sending its message);
-    raises `InvalidInput` naming fields, or a 422 naming the size limit (`service.sizes`) a job would exceed."""
-    issues: list[Issue] = []  # the config's and the tasks' problems reported together, in one 422
-    config = _gathering(issues, lambda: fit_config(body.config))
-    if config is not None:
-        check_hidden(config.hidden, settings)
-    chosen = _gathering(issues, lambda: _tasks(session, lab_id, body))
-    first = None if chosen is None else _gathering(issues, lambda: _check_tasks(session, *chosen, settings))
+def create_job(session: Session, *, lab_id: str, body: Mapping[str, Any], settings: Settings) -> Job:
+    """Check a submission, the JSON object as sent, and add the queued job (flushed; the caller commits before
+    sending its message); raises `InvalidInput` naming every problem at once: the body's types and ranges,
+    the engine's checks of the config, the size limits (`service.sizes`), the demonstrator and its tasks."""
+    issues: list[Issue] = []  # the problems of every stage, reported together in one 422
+    submission = gathering(issues, lambda: validated(JobIn, body))
+    config = gathering(issues, lambda: _config(body.get("config"), settings))
+    chosen = None if submission is None else gathering(issues, lambda: _tasks(session, lab_id, submission))
+    first = None if chosen is None else gathering(issues, lambda: _check_tasks(session, *chosen, settings))
     if config is not None and first is not None:
         layout = Layout(**first.layout) if first.layout else None
         issues += baseline_column_issues(
             config, n_columns=input_columns(first.n_features, layout, config.tabular_inputs)
         )
     check(issues)
-    assert config is not None and chosen is not None  # else check raised
+    assert submission is not None and config is not None and chosen is not None  # else check raised
     tasks = chosen[0]
     now = utcnow()
     job = Job(
         id=new_id("job"),
         lab_id=lab_id,
-        demonstrator_id=body.demonstrator_id,
+        demonstrator_id=submission.demonstrator_id,
         task_ids=[t.id for t in tasks],
         config=config.to_dict(),
         status=JobStatus.QUEUED.value,
@@ -71,17 +72,17 @@ def create_job(session: Session, *, lab_id: str, body: JobIn, settings: Settings
     return job
 
 
-T = TypeVar("T")
-
-
-def _gathering(issues: list[Issue], stage: Callable[[], T]) -> T | None:
-    """``stage()``, or None with its `InvalidInput`'s issues added to ``issues``: a later stage still runs, so
-    a submission's problems come in one answer rather than one stage at a time."""
-    try:
-        return stage()
-    except InvalidInput as exc:
-        issues.extend(exc.issues)
-        return None
+def _config(sent: Any, settings: Settings) -> FitConfig:
+    """The engine's `FitConfig` of a submission's ``config``; `InvalidInput` naming all its problems: types and
+    ranges (`valid_settings`) and, on the settings that pass them, the engine's checks and the hidden-unit
+    limit."""
+    model, issues = valid_settings(sent)
+    config = gathering(issues, lambda: fit_config(model))
+    if config is not None:
+        issues += hidden_issues(config.hidden, settings)
+    check(issues)
+    assert config is not None  # else check raised
+    return config
 
 
 def _tasks(session: Session, lab_id: str, body: JobIn) -> tuple[list[Task], list[str]]:
@@ -141,9 +142,12 @@ def _check_tasks(session: Session, tasks: Sequence[Task], pointers: Sequence[str
     mdps = {
         m.id: m for m in session.execute(select(Mdp).where(Mdp.id.in_({t.mdp_id for t in tasks}))).scalars()
     }
+    first = mdps[tasks[0].mdp_id]
+    first_features = _features_sha(session, first)
+    issues: list[Issue] = []
     for task, pointer in zip(tasks, pointers, strict=True):
         mdp = mdps[task.mdp_id]
-        check_mdp_size(
+        issues += mdp_size_issues(
             mdp.n_states,
             mdp.n_actions,
             mdp.n_features,
@@ -151,10 +155,6 @@ def _check_tasks(session: Session, tasks: Sequence[Task], pointers: Sequence[str
             pointer=pointer,
             what=f"MDP {mdp.id} of task {task.id}",
         )
-    first = mdps[tasks[0].mdp_id]
-    first_features = _features_sha(session, first)
-    issues: list[Issue] = []
-    for task, pointer in zip(tasks, pointers, strict=True):
         if not counts.get(task.id):
             issues.append(
                 Issue(
@@ -162,7 +162,6 @@ def _check_tasks(session: Session, tasks: Sequence[Task], pointers: Sequence[str
                     f"task {task.id} has no demonstrations; upload some to /v1/tasks/{task.id}/demonstrations",
                 )
             )
-        mdp = mdps[task.mdp_id]
         if mdp.id == first.id:
             continue
         shape = (mdp.n_states, mdp.n_actions, mdp.n_features)

@@ -1,16 +1,20 @@
-"""Files of a reward, value function or policy (json, npy, csv, png) and of the comparison matrix, with their ETags;
-the npy and json downloads also straight from the stored bytes (`keyed_stored_file`, read on the event loop)."""
+"""Files of a reward, value function or policy (json, npy, csv, png), of a task's true reward (npy, csv), of the
+comparison matrix, with their ETags, and of a demonstration batch (csv); the npy and json downloads also straight
+from the stored bytes (`keyed_stored_file`, read on the event loop)."""
 
 from __future__ import annotations
 
 import json
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cache
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from sqlalchemy import ColumnElement, Row, and_, bindparam, select
 from sqlalchemy.orm import Session
+
+from metairl_engine.mdp import Layout
 
 if TYPE_CHECKING:
     pass
@@ -21,15 +25,16 @@ from service.domain.rewards import (
     Overlay,
     Quantity,
 )
-from service.files import exports, images
+from service.files import csv_demonstrations, exports, images
 from service.problems import Conflict, Unprocessable
 from service.results.rewards import RewardContext, blob_id_of, not_stored
 from service.store.blobs import blob_sha256, get_array
 from service.store.keys import KeyedQuery, in_key_lab, key_select
-from service.store.loaders import load_trajectories
+from service.store.loaders import batch_trajectories, load_trajectories
 from service.store.models.blobs import Blob
-from service.store.models.demonstrators import Demonstration, Demonstrator, Task
+from service.store.models.demonstrators import Demonstration, Demonstrator, Task, TrueReward
 from service.store.models.jobs import Job, Reward
+from service.store.models.mdps import Mdp
 from service.store.owned import not_found
 
 MEDIA_TYPES: dict[str, str] = {
@@ -82,26 +87,84 @@ def download(
         _check_drawable(ctx, quantity)
         variant += [_title(ctx, quantity), ",".join(_demonstration_ids(session, ctx.task_ids, overlay))]
         variant.append(repr(FIXED_SCALES.get(quantity)))
-    etag = exports.etag_for(blob_sha256(session, blob_id), *variant)
     filename = exports.download_filename(
         demonstrator=ctx.demonstrator.name,
         task=ctx.task.name if ctx.task else None,
         quantity=quantity,
         ext=fmt,
     )
+
+    def content(values: np.ndarray) -> bytes:
+        """The file of the loaded array."""
+        if fmt == "json":
+            return exports.to_json(values, reward_id=ctx.row.id, quantity=quantity).encode()
+        if fmt == "png":
+            return _heatmap(session, ctx, values, quantity=quantity, overlay=overlay)
+        return array_file(values, fmt=fmt, layout=ctx.layout, quantity=quantity)
+
+    return blob_download(
+        session,
+        blob_id,
+        fmt=fmt,
+        filename=filename,
+        variant=variant,
+        if_none_match=if_none_match,
+        make=content,
+    )
+
+
+def blob_download(
+    session: Session,
+    blob_id: str,
+    *,
+    fmt: Format,
+    filename: str,
+    variant: Sequence[str],
+    if_none_match: str | None,
+    make: Callable[[np.ndarray], bytes],
+) -> Download:
+    """Stored array `blob_id` as a `fmt` file made by `make`, with its media type, disposition and ETag (the blob's
+    SHA-256 hashed with `variant`); a 304 when ``If-None-Match`` names that ETag, before the array is read."""
+    etag = exports.etag_for(blob_sha256(session, blob_id), *variant)
     disposition = "inline" if fmt in INLINE_FORMATS else "attachment"
     if etag_matches(if_none_match, etag):
         return Download(None, MEDIA_TYPES[fmt], filename, disposition, etag)
-    values = get_array(session, blob_id)
+    return Download(make(get_array(session, blob_id)), MEDIA_TYPES[fmt], filename, disposition, etag)
+
+
+def array_file(
+    values: np.ndarray, *, fmt: Literal["npy", "csv"], layout: Layout | None, quantity: str
+) -> bytes:
+    """Per-state values as a float32 ``.npy`` or as CSV (``state[,x,y,channel],<quantity>``)."""
     if fmt == "npy":
-        content = exports.to_npy(values)
-    elif fmt == "csv":
-        content = exports.to_csv(values, layout=ctx.layout, quantity=quantity).encode()
-    elif fmt == "json":
-        content = exports.to_json(values, reward_id=ctx.row.id, quantity=quantity).encode()
-    else:
-        content = _heatmap(session, ctx, values, quantity=quantity, overlay=overlay)
-    return Download(content, MEDIA_TYPES[fmt], filename, disposition, etag)
+        return exports.to_npy(values)
+    return exports.to_csv(values, layout=layout, quantity=quantity).encode()
+
+
+TRUE_REWARD = "true_reward"
+"""The quantity a true reward's files are named by: its CSV column, ``…_true-reward.csv``."""
+
+
+def true_reward_download(
+    session: Session, task: Task, row: TrueReward, *, fmt: Literal["npy", "csv"], if_none_match: str | None
+) -> Download:
+    """A task's true reward as an npy or csv file, made, named and tagged as a learned reward's download is."""
+    mdp = session.get_one(Mdp, task.mdp_id)
+    demonstrator = session.get_one(Demonstrator, task.demonstrator_id)
+    layout = Layout(**mdp.layout) if mdp.layout else None
+    variant = [task.id, fmt, TRUE_REWARD] + ([json.dumps(mdp.layout, sort_keys=True)] if fmt == "csv" else [])
+    filename = exports.download_filename(
+        demonstrator=demonstrator.name, task=task.name, quantity=TRUE_REWARD, ext=fmt
+    )
+    return blob_download(
+        session,
+        row.blob_id,
+        fmt=fmt,
+        filename=filename,
+        variant=variant,
+        if_none_match=if_none_match,
+        make=lambda values: array_file(values, fmt=fmt, layout=layout, quantity=TRUE_REWARD),
+    )
 
 
 STORED_FORMATS = {"npy", "json"}
@@ -192,6 +255,18 @@ def stored_file(found: Row[Any], reward_id: str, *, fmt: Format, quantity: Quant
     )
     etag = exports.etag_for(found.blob_sha256, found.reward_id, fmt, quantity)
     return StoredFile(found, fmt, quantity, etag, filename)
+
+
+def demonstrations_csv(session: Session, task: Task, batch: Demonstration) -> Download:
+    """One demonstration batch as the CSV its upload route takes (trajectories numbered in upload order), named
+    ``patient-07_walk-up_demonstrations_trj_….csv``."""
+    demonstrator = session.get_one(Demonstrator, task.demonstrator_id)
+    stem = exports.download_filename(
+        demonstrator=demonstrator.name, task=task.name, quantity="demonstrations", ext="csv"
+    ).removesuffix(".csv")
+    trajectories = batch_trajectories(session, batch)
+    content = csv_demonstrations.to_csv((str(j), t.states, t.actions) for j, t in enumerate(trajectories))
+    return Download(content, MEDIA_TYPES["csv"], f"{stem}_{batch.id}.csv", "attachment", etag=None)
 
 
 def etag_matches(if_none_match: str | None, etag: str) -> bool:

@@ -1,4 +1,5 @@
-"""Deleting a demonstrator, task, MDP or job with everything derived from it (docs/api.md, "Deleting").
+"""Deleting a demonstrator, task, demonstration batch, MDP or job with everything derived from it (docs/api.md,
+"Deleting").
 
 Each function takes a session, deletes rows, the blobs no remaining row refers to, the remembered
 `Idempotency-Key` requests that created them and the webhook deliveries of their jobs, flushes, and never
@@ -74,10 +75,30 @@ def discard_unsent_job(session: Session, job_id: str) -> None:
 def delete_task(session: Session, task: Task) -> None:
     """Delete a task with its demonstrations, true reward and every job that fitted it (their rewards and
     events too); 409 while such a job is queued or running."""
-    jobs = [job for job in _jobs_of(session, task.demonstrator_id) if task.id in job.task_ids]
+    jobs = _jobs_fitting(session, task)
     _refuse_active(jobs, what=f"task {task.id}")
     _delete_jobs(session, [job.id for job in jobs])
     _delete_tasks(session, [task.id])
+
+
+def delete_demonstration(session: Session, batch: Demonstration) -> None:
+    """Delete one demonstration batch with its arrays, and the jobs of its task that finished after it was
+    uploaded (their rewards and events too): a job refers to its tasks, not to a copy of their batches, and
+    reads them when it runs, so those jobs' results came from this batch. Jobs that finished before stay. A
+    recording that stored the batch keeps its samples; its summary's ``demonstration_id`` becomes null.
+    409 while a job fitting the task is queued or running (as for the task itself)."""
+    task = session.get_one(Task, batch.task_id)
+    jobs = _jobs_fitting(session, task)
+    _refuse_active(jobs, what=f"demonstration batch {batch.id}")
+    _delete_jobs(
+        session, [job.id for job in jobs if job.finished_at is None or job.finished_at >= batch.created_at]
+    )
+    _unlink_recordings(session, task, batch.id)
+    blobs = [batch.states_blob_id, batch.actions_blob_id, batch.lengths_blob_id]
+    session.execute(delete(Demonstration).where(Demonstration.id == batch.id))
+    forget_requests(session, [batch.id])
+    session.flush()
+    _delete_unreferenced_blobs(session, blobs, lab_id=batch.lab_id)
 
 
 def delete_demonstrator(session: Session, demonstrator: Demonstrator) -> None:
@@ -140,6 +161,29 @@ def _mdp_users(session: Session, mdp_id: str, *, limit: int) -> list[str]:
 def _jobs_of(session: Session, demonstrator_id: str) -> list[Job]:
     """All jobs of a demonstrator."""
     return list(session.execute(select(Job).where(Job.demonstrator_id == demonstrator_id)).scalars())
+
+
+def _jobs_fitting(session: Session, task: Task) -> list[Job]:
+    """The jobs whose tasks include `task` (whatever their status)."""
+    return [job for job in _jobs_of(session, task.demonstrator_id) if task.id in job.task_ids]
+
+
+def _unlink_recordings(session: Session, task: Task, batch_id: str) -> None:
+    """Set ``demonstration_id`` to null where a recording's summary names the batch `batch_id` of `task` (a
+    recording stores its segments in its demonstrator's tasks on its own MDP), so none names a deleted batch."""
+    recordings = session.execute(
+        select(Recording).where(
+            Recording.demonstrator_id == task.demonstrator_id, Recording.mdp_id == task.mdp_id
+        )
+    ).scalars()
+    for recording in recordings:
+        entries = recording.summary.get("tasks", [])
+        if any(entry.get("demonstration_id") == batch_id for entry in entries):
+            unlinked = [
+                entry | {"demonstration_id": None} if entry.get("demonstration_id") == batch_id else entry
+                for entry in entries
+            ]
+            recording.summary = recording.summary | {"tasks": unlinked}
 
 
 def _refuse_active(jobs: Iterable[Job], *, what: str) -> None:

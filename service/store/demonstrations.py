@@ -11,6 +11,7 @@ from service.store.blobs import put_array
 from service.store.ids import new_id
 from service.store.loaders import load_mdp
 from service.store.models.demonstrators import Demonstration, Task
+from service.store.owned import not_found
 from service.store.paging import PageParams, RowPage, paginate
 
 
@@ -45,3 +46,11 @@ def list_demonstrations(session: Session, task: Task, *, page: PageParams) -> Ro
     """One page of a task's demonstration batches, newest first."""
     query = select(Demonstration).where(Demonstration.task_id == task.id, Demonstration.lab_id == task.lab_id)
     return paginate(session, query, page, key=(Demonstration.created_at, Demonstration.id))
+
+
+def get_demonstration(session: Session, task: Task, batch_id: str) -> Demonstration:
+    """The batch `batch_id` of `task`, or 404 naming it (another task's or another lab's batch too)."""
+    row = session.get(Demonstration, batch_id)
+    if row is None or row.task_id != task.id or row.lab_id != task.lab_id:
+        raise not_found("demonstration batch", batch_id)
+    return row

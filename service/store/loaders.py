@@ -87,20 +87,20 @@ def load_trajectories(session: Session, task_id: str) -> list[Trajectory]:
         .where(Demonstration.task_id == task_id)
         .order_by(Demonstration.created_at, Demonstration.id)
     ).scalars()
-    out: list[Trajectory] = []
-    for batch in batches:
-        states = get_array(session, batch.states_blob_id).astype(np.int64)
-        actions = get_array(session, batch.actions_blob_id).astype(np.int64)
-        lengths = get_array(session, batch.lengths_blob_id)
-        state_ends = np.cumsum(lengths[:, 0])
-        action_ends = np.cumsum(lengths[:, 1])
-        out += [
-            Trajectory(states=s, actions=a)
-            for s, a in zip(
-                np.split(states, state_ends[:-1]), np.split(actions, action_ends[:-1]), strict=True
-            )
-        ]
-    return out
+    return [trajectory for batch in batches for trajectory in batch_trajectories(session, batch)]
+
+
+def batch_trajectories(session: Session, batch: Demonstration) -> list[Trajectory]:
+    """The trajectories of one upload batch, in upload order (its blobs split by the stored lengths)."""
+    states = get_array(session, batch.states_blob_id).astype(np.int64)
+    actions = get_array(session, batch.actions_blob_id).astype(np.int64)
+    lengths = get_array(session, batch.lengths_blob_id)
+    state_ends = np.cumsum(lengths[:, 0])
+    action_ends = np.cumsum(lengths[:, 1])
+    return [
+        Trajectory(states=s, actions=a)
+        for s, a in zip(np.split(states, state_ends[:-1]), np.split(actions, action_ends[:-1]), strict=True)
+    ]
 
 
 def load_true_reward(session: Session, task_id: str) -> np.ndarray | None:

@@ -40,6 +40,7 @@ from service.store import mdps
 from service.store.blobs import get_array, put_array
 from service.store.demonstrations import add_demonstrations
 from service.store.ids import new_id
+from service.store.loaders import batch_trajectories
 from service.store.models.demonstrators import Demonstration, Demonstrator, Task
 from service.store.models.mdps import Mdp
 from service.store.models.recordings import Recording as RecordingRow
@@ -444,25 +445,20 @@ class CutSegment:
 
 def recording_demonstrations(session: Session, row: RecordingRow) -> list[CutSegment]:
     """The demonstrations the upload of `row` stored, label by label in upload order; batches deleted since
-    (with their task) are left out."""
+    (alone, their ``demonstration_id`` then null, or with their task) are left out."""
     out = []
     for entry in row.summary.get("tasks", []):
-        batch = session.get(Demonstration, entry["demonstration_id"])
+        batch = session.get(Demonstration, entry["demonstration_id"]) if entry["demonstration_id"] else None
         if batch is None or batch.lab_id != row.lab_id:
             continue
-        states = get_array(session, batch.states_blob_id).astype(np.int64)
-        actions = get_array(session, batch.actions_blob_id).astype(np.int64)
-        lengths = get_array(session, batch.lengths_blob_id)
-        state_ends, action_ends = np.cumsum(lengths[:, 0]), np.cumsum(lengths[:, 1])
-        pieces = zip(np.split(states, state_ends[:-1]), np.split(actions, action_ends[:-1]), strict=True)
         out += [
             CutSegment(
                 label=entry["label"],
                 task_id=entry["task_id"],
                 demonstration_id=batch.id,
                 index=k,
-                trajectory=Trajectory(states=s, actions=a),
+                trajectory=trajectory,
             )
-            for k, (s, a) in enumerate(pieces)
+            for k, trajectory in enumerate(batch_trajectories(session, batch))
         ]
     return out

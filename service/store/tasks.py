@@ -9,9 +9,9 @@ from sqlalchemy import delete, func, select
 from sqlalchemy.orm import Session
 
 from metairl_engine.mdp import FLOAT32_MAX
-from service.domain.tasks import TaskTotals
+from service.domain.tasks import TaskTotals, TrueRewardOut
 from service.problems import Unprocessable
-from service.store.blobs import put_array
+from service.store.blobs import blob_sha256, get_array, put_array
 from service.store.ids import new_id
 from service.store.models.blobs import Blob
 from service.store.models.demonstrators import Demonstration, Demonstrator, Task, TrueReward
@@ -118,3 +118,9 @@ def put_true_reward(session: Session, task: Task, values: list[float]) -> TrueRe
 def get_true_reward(session: Session, task: Task) -> TrueReward | None:
     """A task's true reward row, or None."""
     return session.get(TrueReward, task.id)
+
+
+def true_reward_out(session: Session, row: TrueReward) -> TrueRewardOut:
+    """The API view of a stored true reward, the same for PUT and GET: its values read back as stored (float32)."""
+    values = get_array(session, row.blob_id).tolist()
+    return TrueRewardOut.of(row, sha256=blob_sha256(session, row.blob_id), values=values)

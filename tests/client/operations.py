@@ -28,11 +28,19 @@ OPERATION_METHODS: dict[str, tuple[str, ...]] = {
     "delete_task_v1_tasks__task_id__delete": ("delete_task",),
     "put_true_reward_v1_tasks__task_id__true_reward_put": ("put_true_reward",),
     "get_true_reward_v1_tasks__task_id__true_reward_get": ("get_true_reward",),
-    "add_demonstrations_v1_tasks__task_id__demonstrations_post": ("add_demonstrations",),
+    "add_demonstrations_v1_tasks__task_id__demonstrations_post": (
+        "add_demonstrations",
+        "upload_demonstrations",
+    ),
     "list_demonstrations_v1_tasks__task_id__demonstrations_get": (
         "list_demonstrations",
         "iter_demonstrations",
     ),
+    "read_batch_v1_tasks__task_id__demonstrations__batch_id__get": (
+        "get_demonstrations",
+        "download_demonstrations",
+    ),
+    "delete_batch_v1_tasks__task_id__demonstrations__batch_id__delete": ("delete_demonstrations",),
     "upload_recording_v1_demonstrators__demonstrator_id__recordings_post": ("upload_recording",),
     "list_recordings_v1_demonstrators__demonstrator_id__recordings_get": (
         "list_recordings",

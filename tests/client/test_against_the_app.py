@@ -5,7 +5,9 @@ from __future__ import annotations
 import asyncio
 import csv
 import io
+import tempfile
 from collections.abc import AsyncIterator, Iterator
+from pathlib import Path
 from typing import Any
 
 import httpx
@@ -149,7 +151,31 @@ def journey(app: FastAPI, lab: Any) -> None:
     )
     assert sorted(ids(lab.iter_demonstrations(task))) == sorted(batches)
     lab.put_true_reward(task, np.array([0.0, 0.0, 1.0]))
-    assert lab.get_true_reward(task)["values"] == [0.0, 0.0, 1.0]
+    truth = lab.get_true_reward(task)
+    assert isinstance(truth, np.ndarray) and truth.dtype == np.float64 and truth.tolist() == [0.0, 0.0, 1.0]
+    with pytest.raises(NotFoundError):
+        lab.get_true_reward(spare)  # none set
+
+    # One batch read back as JSON and as CSV; the CSV uploaded again from bytes and from a file, then removed.
+    first_batch = lab.get_demonstrations(task, batches[0])
+    assert (first_batch["id"], first_batch["n_trajectories"]) == (batches[0], 2)
+    assert first_batch["trajectories"] == [
+        {"states": [0, 1, 2], "actions": [1, 1]},
+        {"states": [2, 1], "actions": [0, 0]},
+    ]
+    as_csv = lab.download_demonstrations(task, batches[0])
+    assert as_csv.decode().splitlines()[:2] == ["trajectory,step,state,action", "0,0,0,1"]
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "batch.csv"
+        path.write_bytes(as_csv)
+        copies = [lab.upload_demonstrations(spare, as_csv), lab.upload_demonstrations(spare, path)]
+    for copy in copies:
+        again = lab.get_demonstrations(spare, copy)
+        assert (again["format"], again["trajectories"]) == ("csv", first_batch["trajectories"])
+        lab.delete_demonstrations(spare, copy)
+        with pytest.raises(NotFoundError):
+            lab.get_demonstrations(spare, copy)
+    assert lab.get_task(spare)["n_trajectories"] == 0
 
     # Recordings and the motion readout of two demonstrators.
     grid = lab.create_mdp(VELOCITY_GRID)
@@ -186,6 +212,8 @@ def journey(app: FastAPI, lab: Any) -> None:
     # Jobs: one cancelled and deleted, one given results as the worker would.
     cancelled = lab.submit_job(dem, task_ids=[task], config={"max_steps": 5})
     assert lab.get_job(cancelled.id).status == "queued"
+    with pytest.raises(ConflictError):
+        lab.delete_demonstrations(task, batches[1])  # the queued job will read it
     assert lab.cancel_job(cancelled.id).status == "cancelled"
     with pytest.raises(ConflictError):
         lab.cancel_job(cancelled.id)

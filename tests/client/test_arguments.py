@@ -1,7 +1,10 @@
 """What the client does with arguments before sending them: one task id where a list is expected is that
-one task, and a NaN a JSON body cannot carry is a `MetairlError` raised before anything is sent."""
+one task, a NaN a JSON body cannot carry is a `MetairlError` raised before anything is sent, and a CSV given
+by its path is read from there."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -67,3 +70,17 @@ def test_numpy_arrays_in_a_json_body_are_sent_as_the_lists_they_hold(
     )
     mdp = client.get(f"/v1/mdps/{mdp_id}").json()
     assert (mdp["n_states"], mdp["gamma"]) == (3, 0.5)
+
+
+def test_a_demonstrations_csv_given_by_a_path_string_is_read_from_that_file(
+    client: TestClient, auth: dict[str, str], tmp_path: Path
+) -> None:
+    task = make_task(client, auth)
+    client.headers.update(auth)
+    path = tmp_path / "walks.csv"
+    path.write_text("trajectory,step,state,action\nw,0,0,1\nw,1,1,1\nw,2,2,\n")
+    lab = Client(client)
+    batch_id = lab.upload_demonstrations(task["id"], str(path))
+    assert lab.get_demonstrations(task["id"], batch_id)["trajectories"] == [
+        {"states": [0, 1, 2], "actions": [1, 1]}
+    ]

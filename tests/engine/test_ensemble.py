@@ -3,14 +3,18 @@ the automatic size follows the budget, and the calibrated held-out NLL ignores t
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
+import pytest
 import torch
 
 from metairl_engine import FitConfig, Trajectory
-from metairl_engine.config import ensemble_size
+from metairl_engine.config import ENSEMBLE_BUDGET, MAX_AUTO_MEMBERS, ensemble_size
 from metairl_engine.fit import _Problem, calibrated_nll, fit, gradient_step
 from metairl_engine.holdout import split_steps
 from metairl_engine.networks import StackedMLP, fourier_features
+from tests.engine.helpers import goal_tasks_with_features
 from tests.engine.test_fit import terrain_tasks
 
 
@@ -50,6 +54,23 @@ def test_automatic_ensemble_size_shrinks_as_problems_grow() -> None:
     assert ensemble_size(auto, n_tasks=16, n_states=576) == 3
     assert ensemble_size(auto, n_tasks=16, n_states=80_000) == 1
     assert ensemble_size(FitConfig(ensemble=2), n_tasks=16, n_states=80_000) == 2
+
+
+@pytest.mark.parametrize(("budget", "members"), [(ENSEMBLE_BUDGET, MAX_AUTO_MEMBERS), (100, 2), (50, 1)])
+def test_the_result_of_an_automatic_ensemble_states_its_members_and_refits_alike(
+    monkeypatch: pytest.MonkeyPatch, budget: int, members: int
+) -> None:
+    """``ensemble`` 0 leaves K to the fit (`ensemble_size`, 2 tasks × 25 states here): the result's config
+    says the K fitted, so refitting with it is the same fit."""
+    monkeypatch.setattr("metairl_engine.config.ENSEMBLE_BUDGET", budget)
+    tasks = goal_tasks_with_features(np.random.default_rng(0).normal(size=(25, 3)).astype(np.float32))
+    auto = FitConfig(hidden=(8,), max_steps=5)
+    result = fit(tasks, auto)
+    assert result.config == replace(auto, ensemble=members)
+    assert (result.reward_spread is None) == (members == 1)  # a spread needs two members or more
+    again = fit(tasks, result.config)
+    assert again.config == result.config
+    np.testing.assert_array_equal(again.rewards, result.rewards)
 
 
 def test_an_ensemble_fit_returns_one_reward_per_task() -> None:

@@ -18,13 +18,16 @@ from metairl_engine.fit import fit
 from metairl_engine.results import SAVE_FORMAT, FitResult
 from tests.engine.helpers import goal_tasks_with_features
 
+SAVED = FitConfig(hidden=(8,), max_steps=5, ensemble=4)
+"""The saved fit's config: 4 members, as many as the automatic ensemble fits 2 tasks of 25 states with."""
+
 
 @pytest.fixture(scope="module")
 def saved(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A small fit's file."""
     features = np.random.default_rng(0).normal(size=(25, 3)).astype(np.float32)
     path = tmp_path_factory.mktemp("fit") / "fit.npz"
-    fit(goal_tasks_with_features(features), FitConfig(hidden=(8,), max_steps=5)).save(path)
+    fit(goal_tasks_with_features(features), SAVED).save(path)
     return path
 
 
@@ -41,7 +44,7 @@ def rewritten(saved: Path, tmp_path: Path, change: dict[str, object]) -> Path:
 
 def test_a_saved_fit_loads_as_it_was(saved: Path) -> None:
     loaded = FitResult.load(saved)
-    assert loaded.config == FitConfig(hidden=(8,), max_steps=5) and loaded.rewards.shape == (2, 25)
+    assert loaded.config == SAVED and loaded.rewards.shape == (2, 25)
 
 
 def test_a_result_prints_as_one_line_of_shapes_and_compares_by_identity(saved: Path) -> None:
@@ -145,7 +148,7 @@ def test_a_file_without_a_format_is_read_as_this_format_and_refused_if_its_confi
     with np.load(saved) as stored:
         assert json.loads(str(stored["meta"]))["format"] == SAVE_FORMAT
     whole = FitResult.load(with_meta(saved, tmp_path, lambda meta: meta.pop("format")))
-    assert whole.config == FitConfig(hidden=(8,), max_steps=5)
+    assert whole.config == SAVED
 
     def older(meta: dict[str, Any]) -> None:
         del meta["format"], meta["config"]["tabular_choice"]

@@ -10,6 +10,7 @@ and are always killed in teardown. Heartbeats, the reaper and the stale cutoff a
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 import secrets
 import signal
@@ -145,16 +146,30 @@ def stack(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFacto
     settings = Settings(**options, **FAST)  # type: ignore[arg-type]
     workers = Workers(settings, root)
     app = create_app(settings)
-    try:
-        with TestClient(app) as client, app.state.sessionmaker() as session:
-            auth = {"Authorization": f"Bearer {create_key(session, f'jobs-{secrets.token_hex(3)}')}"}
-            yield Stack(request.param, settings, client, auth, workers)
-    finally:
-        workers.kill_all()
-        app.state.engine.dispose()
-        if database:
-            _drop_postgres_database(database)
-        delete_queue(settings)  # the test's queue is durable on a shared broker
+    node = (
+        node_of_this_machine(tmp_path_factory) if request.param == "rabbitmq_pg" else contextlib.nullcontext()
+    )
+    with node:
+        try:
+            with TestClient(app) as client, app.state.sessionmaker() as session:
+                auth = {"Authorization": f"Bearer {create_key(session, f'jobs-{secrets.token_hex(3)}')}"}
+                yield Stack(request.param, settings, client, auth, workers)
+        finally:
+            workers.kill_all()
+            app.state.engine.dispose()
+            if database:
+                _drop_postgres_database(database)
+            delete_queue(settings)  # the test's queue is durable on a shared broker
+
+
+@contextlib.contextmanager
+def node_of_this_machine(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """Hold, across this run's test processes (pytest-xdist's), the Celery node name every worker on this machine
+    has (``celery@HOST``): on RabbitMQ a worker holds its node's exclusive queue ``celery@HOST.celery.pidbox``,
+    so another process's worker would die at start (RESOURCE_LOCKED) while one runs."""
+    with open(tmp_path_factory.getbasetemp().parent / "rabbitmq-node.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield
 
 
 @pytest.fixture

@@ -9,7 +9,6 @@ from typing import Any
 from fastapi.testclient import TestClient
 from sqlalchemy.orm import Session, sessionmaker
 
-from service.domain.jobs import JobIn
 from service.jobs.submit import create_job
 from service.settings import Settings
 from service.store.models.demonstrators import Demonstrator
@@ -84,7 +83,7 @@ def unsent_job(make_session: sessionmaker[Session], demonstrator_id: str, config
     """A job committed as the API does but whose message was never sent (the API died in between): its id."""
     with make_session() as session:
         lab_id = session.get_one(Demonstrator, demonstrator_id).lab_id
-        body = JobIn(demonstrator_id=demonstrator_id, config=config)
+        body = {"demonstrator_id": demonstrator_id, "config": config}
         job_id = create_job(session, lab_id=lab_id, body=body, settings=Settings(job_max_attempts=3)).id
         session.commit()
         return job_id

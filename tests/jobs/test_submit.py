@@ -98,6 +98,64 @@ def test_a_bad_setting_and_a_bad_task_come_in_one_answer(client: TestClient, aut
     assert pointers(response) == ["/config/baseline_features", "/task_ids/1"]
 
 
+def test_what_the_schema_refuses_and_what_only_the_checks_after_it_find_come_in_one_answer(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    demonstrator_id, task_ids = demonstrated_tasks(client, auth, 1)
+    config = {
+        "hidden": "wide",  # not a list
+        "learning_rate": "fast",  # not a number
+        "max_stepz": 10,  # not a setting
+        "holdout_fraction": 1.0,  # out of range
+        "baseline_features": [0, 0],  # of the schema's type, refused by the engine's check
+    }
+    body = {"demonstrator_id": demonstrator_id, "task_ids": [task_ids[0], "task_nope"], "config": config}
+    response = client.post("/v1/jobs", json=body, headers=auth)
+    assert sorted(pointers(response)) == [
+        "/config/baseline_features",
+        "/config/hidden",
+        "/config/holdout_fraction",
+        "/config/learning_rate",
+        "/config/max_stepz",
+        "/task_ids/1",
+    ]
+    assert client.get("/v1/jobs", headers=auth).json()["data"] == []
+
+
+def test_a_bad_setting_and_hidden_layers_over_the_size_limit_come_in_one_answer(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    demonstrator_id, _ = demonstrated_tasks(client, auth, 1)
+    config = {"learning_rate": "fast", "hidden": [8, 100_000, 100_000]}  # over METAIRL_MAX_HIDDEN_UNITS
+    response = client.post(
+        "/v1/jobs", json={"demonstrator_id": demonstrator_id, "config": config}, headers=auth
+    )
+    assert pointers(response) == ["/config/learning_rate", "/config/hidden/1", "/config/hidden/2"]
+    assert "METAIRL_MAX_HIDDEN_UNITS" in response.json()["errors"][1]["message"]
+
+
+@pytest.mark.parametrize(
+    ("body", "expected"),
+    [
+        ({"demonstrator_id": 5, "config": {"seed": -1}}, ["/demonstrator_id", "/config/seed"]),
+        ({"config": {"hidden": [100_000]}}, ["/demonstrator_id", "/config/hidden/0"]),
+        (
+            {"demonstrator_id": "dem_nope", "task_id": [], "config": {"sharing": "cosine"}},
+            ["/task_id", "/config/sharing"],
+        ),
+        ({"demonstrator_id": "dem_nope", "config": "fast"}, ["/config", "/demonstrator_id"]),
+    ],
+)
+def test_a_mistake_in_the_body_itself_comes_with_the_configs(
+    client: TestClient, auth: dict[str, str], body: dict[str, Any], expected: list[str]
+) -> None:
+    assert pointers(client.post("/v1/jobs", json=body, headers=auth)) == expected
+
+
+def test_a_body_that_is_not_an_object_is_422_at_the_body(client: TestClient, auth: dict[str, str]) -> None:
+    assert pointers(client.post("/v1/jobs", json=["dem_x"], headers=auth)) == [""]
+
+
 def test_every_task_needs_demonstrations(client: TestClient, auth: dict[str, str]) -> None:
     demonstrator_id, task_ids = demonstrated_tasks(client, auth, 1)
     bare = make_task(client, auth, demonstrator_id=demonstrator_id)["id"]

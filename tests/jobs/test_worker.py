@@ -15,7 +15,7 @@ import pytest
 import torch
 from sqlalchemy import func, select
 
-from metairl_engine.config import FitConfig
+from metairl_engine.config import MAX_AUTO_MEMBERS, FitConfig
 from metairl_engine.fit import fit
 from metairl_engine.shrinkage import SHRINKAGE
 from metairl_engine.sim.benchmark import goal_tasks
@@ -86,6 +86,20 @@ def test_job_succeeds_and_its_rewards_download_as_json_and_npy(
         f"/v1/rewards/{rewards['baseline']['reward_id']}", params={"quantity": "value"}, headers=auth
     )
     assert baseline_value.status_code == 409
+
+
+def test_a_succeeded_job_states_the_ensemble_members_its_automatic_ensemble_fitted(
+    stack: Stack, worker: subprocess.Popen[bytes]
+) -> None:
+    client, auth = stack.client, stack.auth
+    demonstrator_id, _ = demonstrated_tasks(client, auth)
+    queued = submit(client, auth, demonstrator_id, QUICK | {"tabular_choice": False})  # the networks, surely
+    assert queued["config"]["ensemble"] == 0  # automatic: the fit picks K
+    job = wait_for(client, auth, queued["id"])
+    assert job["status"] == "succeeded", job
+    # 2 tasks of 3 states are far within the budget: the most members the automatic ensemble uses.
+    assert job["config"] == queued["config"] | {"ensemble": MAX_AUTO_MEMBERS}
+    assert job["ignored_settings"] == []
 
 
 def test_a_succeeded_job_keeps_every_step_and_the_shrinkage_and_sparsity_the_engine_computed(

@@ -114,9 +114,10 @@ def owned_resource_ids(app: FastAPI, client: TestClient, auth: dict[str, str]) -
     missing here fails that test until a factory is added.
     """
     task = make_task(client, auth)
-    add_demonstrations(client, auth, task["id"])
+    batch = add_demonstrations(client, auth, task["id"])
     created(client.put(f"/v1/tasks/{task['id']}/true-reward", json={"values": [0, 0, 1]}, headers=auth), 200)
     ids = {"mdp_id": task["mdp_id"], "demonstrator_id": task["demonstrator_id"], "task_id": task["id"]}
+    ids["batch_id"] = batch["id"]
     ids["job_id"] = created(
         client.post("/v1/jobs", json={"demonstrator_id": task["demonstrator_id"]}, headers=auth), 202
     )["id"]

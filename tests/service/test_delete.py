@@ -1,6 +1,6 @@
-"""Deleting (docs/api.md, "Deleting"): a demonstrator, task, MDP or job goes with every row and blob derived
-from it, counted table by table before and after; 409 while a job on it is queued or running or while an
-MDP is used; another lab gets 404 (and `test_isolation` checks that for every route)."""
+"""Deleting (docs/api.md, "Deleting"): a demonstrator, task, demonstration batch, MDP or job goes with every row
+and blob derived from it, counted table by table before and after; 409 while a job on it is queued or running
+or while an MDP is used; another lab gets 404 (and `test_isolation` checks that for every route)."""
 
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ from metairl_engine.sim.patient import PatientSettings, simulate_patient
 from service.jobs.transitions import cancel
 from service.settings import Settings
 from service.store.models import Base
+from service.store.models.base import utcnow
 from service.store.models.jobs import Job
 from service.store.models.webhooks import WebhookDelivery
 from tests.service.helpers import (
@@ -28,6 +29,7 @@ from tests.service.helpers import (
     make_demonstrator,
     make_mdp,
     make_task,
+    store_results,
 )
 
 RIGHT = [{"states": [0, 1, 2], "actions": [1, 1]}]
@@ -234,6 +236,7 @@ def test_delete_routes_are_documented(app: FastAPI) -> None:
         "/v1/tasks/{task_id}",
         "/v1/mdps/{mdp_id}",
         "/v1/jobs/{job_id}",
+        "/v1/tasks/{task_id}/demonstrations/{batch_id}",
     ):
         responses = paths[path]["delete"]["responses"]
         assert {"204", "404", "409"} <= set(responses), (path, responses)
@@ -269,3 +272,123 @@ def test_deleting_a_job_drops_its_webhook_deliveries(
     assert client.delete(f"/v1/jobs/{job['id']}", headers=auth).status_code == 204
     with app.state.sessionmaker() as session:
         assert not session.execute(select(WebhookDelivery).where(WebhookDelivery.job_id == job["id"])).first()
+
+
+def finished_now(app: FastAPI, job_id: str) -> None:
+    """Stamp a job's finish time now, as the worker does when it ends (`store_results` leaves it unset)."""
+    with app.state.sessionmaker() as session:
+        session.get_one(Job, job_id).finished_at = utcnow()
+        session.commit()
+
+
+def test_deleting_a_batch_takes_its_arrays_and_leaves_the_task_and_its_other_batches(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    task = make_task(client, auth)
+    kept = add_demonstrations(client, auth, task["id"], RIGHT)
+    gone = add_demonstrations(client, auth, task["id"], LEFT)
+    before = row_counts(app)
+    url = f"/v1/tasks/{task['id']}/demonstrations/{gone['id']}"
+    response = client.delete(url, headers=auth)
+    assert response.status_code == 204 and response.content == b"", response.text
+    assert diff(row_counts(app), before) == {"demonstrations": -1, "blobs": -3}  # states, actions, lengths
+    assert client.get(url, headers=auth).status_code == 404
+    listed = client.get(f"/v1/tasks/{task['id']}/demonstrations", headers=auth).json()["data"]
+    assert [b["id"] for b in listed] == [kept["id"]]
+    assert client.get(f"/v1/tasks/{task['id']}", headers=auth).json()["n_trajectories"] == 1
+    assert client.delete(url, headers=auth).status_code == 404
+
+
+def test_a_deleted_batchs_idempotency_key_creates_a_new_batch_instead_of_answering_the_deleted_id(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    task = make_task(client, auth)
+    url, headers = f"/v1/tasks/{task['id']}/demonstrations", auth | {"Idempotency-Key": "batch-of-monday"}
+    first = created(client.post(url, json={"trajectories": RIGHT}, headers=headers))
+    assert client.post(url, json={"trajectories": RIGHT}, headers=headers).json()["id"] == first["id"]
+    assert client.delete(f"{url}/{first['id']}", headers=auth).status_code == 204
+    again = client.post(url, json={"trajectories": RIGHT}, headers=headers)
+    assert again.status_code == 201 and "Idempotent-Replayed" not in again.headers
+    assert again.json()["id"] != first["id"]
+    assert client.get(f"{url}/{again.json()['id']}", headers=auth).status_code == 200
+
+
+def test_a_queued_job_fitting_the_task_blocks_deleting_its_batch_and_a_job_on_another_task_does_not(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    task = make_task(client, auth)
+    dem_id = task["demonstrator_id"]
+    other = make_task(client, auth, demonstrator_id=dem_id, mdp_id=task["mdp_id"])
+    batch = add_demonstrations(client, auth, task["id"], RIGHT)
+    add_demonstrations(client, auth, other["id"], LEFT)
+    jobs = [
+        created(client.post("/v1/jobs", json={"demonstrator_id": dem_id, "task_ids": [t]}, headers=auth), 202)
+        for t in (task["id"], other["id"])
+    ]
+    url = f"/v1/tasks/{task['id']}/demonstrations/{batch['id']}"
+    before = row_counts(app)
+    refused = client.delete(url, headers=auth)
+    assert refused.status_code == 409, refused.text
+    assert refused.headers["content-type"].startswith("application/problem+json")
+    detail = refused.json()["detail"]
+    assert batch["id"] in detail and jobs[0]["id"] in detail and "cancel" in detail
+    assert jobs[1]["id"] not in detail
+    assert row_counts(app) == before  # nothing deleted
+    assert client.get(url, headers=auth).status_code == 200
+
+    created(client.post(f"/v1/jobs/{jobs[0]['id']}/cancel", headers=auth), 202)
+    assert client.delete(url, headers=auth).status_code == 204  # the other task's job is still queued
+    assert client.get(f"/v1/jobs/{jobs[0]['id']}", headers=auth).status_code == 404  # ended after the upload
+    assert client.get(f"/v1/jobs/{jobs[1]['id']}", headers=auth).json()["status"] == "queued"
+
+
+def test_deleting_a_batch_takes_the_jobs_that_finished_after_its_upload_and_keeps_earlier_ones(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    mdp = make_mdp(client, auth)
+    rewards = np.arange(6, dtype=np.float32).reshape(2, 3)
+    earlier = fitted_job(app, client, auth, mdp=mdp, demonstrations={"right": RIGHT}, rewards=rewards)
+    finished_now(app, earlier["job_id"])
+    task_id, dem_id = earlier["task_ids"][0], earlier["demonstrator_id"]
+    first_batch = client.get(f"/v1/tasks/{task_id}/demonstrations", headers=auth).json()["data"][0]
+    batch = add_demonstrations(client, auth, task_id, LEFT)
+    later = created(client.post("/v1/jobs", json={"demonstrator_id": dem_id}, headers=auth), 202)
+    later_rewards = store_results(
+        app, job_id=later["id"], baseline=rewards[0], task_rewards=[rewards[1]], n_actions=2
+    )
+    finished_now(app, later["id"])
+
+    before = row_counts(app)
+    assert client.delete(f"/v1/tasks/{task_id}/demonstrations/{batch['id']}", headers=auth).status_code == 204
+    changed = diff(row_counts(app), before)
+    assert changed["demonstrations"] == -1 and changed["jobs"] == -1 and changed["rewards"] == -2, changed
+    assert changed["blobs"] == -(3 + 4), changed  # the batch's 3 arrays; rewards: 1 + 3 (value, policy)
+    assert client.get(f"/v1/jobs/{later['id']}", headers=auth).status_code == 404
+    assert client.get(f"/v1/rewards/{later_rewards[1]}", headers=auth).status_code == 404
+    assert client.get(f"/v1/jobs/{earlier['job_id']}", headers=auth).json()["status"] == "succeeded"
+    assert client.get(f"/v1/rewards/{earlier['reward_ids'][1]}", headers=auth).status_code == 200
+
+    # The earlier job read the first batch: it goes with that one.
+    url = f"/v1/tasks/{task_id}/demonstrations/{first_batch['id']}"
+    assert client.delete(url, headers=auth).status_code == 204
+    assert client.get(f"/v1/jobs/{earlier['job_id']}", headers=auth).status_code == 404
+    assert client.get(f"/v1/tasks/{task_id}", headers=auth).json()["n_trajectories"] == 0
+
+
+def test_deleting_a_batch_a_recording_stored_keeps_the_recording_which_no_longer_names_it(
+    app: FastAPI, client: TestClient, auth: dict[str, str]
+) -> None:
+    dem = make_demonstrator(client, auth)
+    recording = upload_recording(client, auth, dem["id"])
+    (entry,) = recording["tasks"]
+    cut = client.get(f"/v1/recordings/{recording['id']}/demonstrations", headers=auth).json()["trajectories"]
+    assert {t["demonstration_id"] for t in cut} == {entry["demonstration_id"]}
+    before = row_counts(app)
+    url = f"/v1/tasks/{entry['task_id']}/demonstrations/{entry['demonstration_id']}"
+    assert client.delete(url, headers=auth).status_code == 204
+    assert diff(row_counts(app), before) == {"demonstrations": -1, "blobs": -3}  # samples and recording stay
+    (listed,) = client.get(f"/v1/demonstrators/{dem['id']}/recordings", headers=auth).json()["data"]
+    assert listed["tasks"] == [entry | {"demonstration_id": None}]
+    assert (listed["n_samples"], listed["segments"]) == (recording["n_samples"], recording["segments"])
+    cut = client.get(f"/v1/recordings/{recording['id']}/demonstrations", headers=auth).json()["trajectories"]
+    assert cut == []

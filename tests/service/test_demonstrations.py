@@ -134,3 +134,74 @@ def test_csv_trailing_empty_cells_are_not_extra_cells(client: TestClient, auth: 
     task = make_task(client, auth)
     response = post_csv(client, auth, task["id"], "trajectory,step,state,action\nA,0,0,1,\nA,1,1,,\n")
     assert response.status_code == 201, response.text
+
+
+def test_a_batch_reads_back_with_its_metadata_and_trajectories_as_uploaded(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    task = make_task(client, auth)
+    add_demonstrations(client, auth, task["id"])
+    uploaded = [{"states": [0, 1, 2], "actions": [1, 1]}, {"states": [2, 1], "actions": [0, 0]}]
+    batch = add_demonstrations(client, auth, task["id"], uploaded)
+    response = client.get(f"/v1/tasks/{task['id']}/demonstrations/{batch['id']}", headers=auth)
+    assert response.status_code == 200, response.text
+    body = response.json()
+    assert (
+        body.pop("trajectories") == uploaded
+    )  # the one without a final state keeps as many states as actions
+    assert body == batch
+
+
+def test_a_batch_as_csv_is_what_the_upload_route_takes_back(client: TestClient, auth: dict[str, str]) -> None:
+    task = make_task(client, auth)
+    text = "trajectory,step,state,action\nb,1,1,0\na,0,0,1\na,1,1,1\na,2,2,\nb,0,2,0\n"
+    batch = created(post_csv(client, auth, task["id"], text))
+    url = f"/v1/tasks/{task['id']}/demonstrations/{batch['id']}"
+    response = client.get(url, params={"format": "csv"}, headers=auth)
+    assert response.status_code == 200 and response.headers["content-type"].startswith("text/csv")
+    assert (
+        response.headers["content-disposition"]
+        == f'attachment; filename="patient-1_reach_demonstrations_{batch["id"]}.csv"'
+    )
+    # Trajectories numbered in upload order (b came first), the final state's action empty.
+    assert response.text == "trajectory,step,state,action\n0,0,2,0\n0,1,1,0\n1,0,0,1\n1,1,1,1\n1,2,2,\n"
+
+    again = created(post_csv(client, auth, task["id"], response.text))
+    copy = client.get(f"/v1/tasks/{task['id']}/demonstrations/{again['id']}", headers=auth).json()
+    assert copy["trajectories"] == client.get(url, headers=auth).json()["trajectories"]
+    assert (copy["n_trajectories"], copy["n_steps"]) == (batch["n_trajectories"], batch["n_steps"])
+
+
+@pytest.mark.parametrize("fmt", ["xml", "npy", ""])
+def test_an_unknown_batch_format_is_422_naming_format(
+    client: TestClient, auth: dict[str, str], fmt: str
+) -> None:
+    task = make_task(client, auth)
+    batch = add_demonstrations(client, auth, task["id"])
+    response = client.get(
+        f"/v1/tasks/{task['id']}/demonstrations/{batch['id']}", params={"format": fmt}, headers=auth
+    )
+    assert response.status_code == 422, response.text
+    assert response.headers["content-type"].startswith("application/problem+json")
+    assert [e["parameter"] for e in response.json()["errors"]] == ["format"]
+
+
+def test_a_batch_is_found_only_under_its_own_task_and_lab(
+    client: TestClient, auth: dict[str, str], auth_b: dict[str, str]
+) -> None:
+    task = make_task(client, auth)
+    other = make_task(client, auth, demonstrator_id=task["demonstrator_id"], mdp_id=task["mdp_id"])
+    batch = add_demonstrations(client, auth, task["id"])
+    for task_id, batch_id, headers in (
+        (task["id"], "trj_missing", auth),  # no such batch
+        (other["id"], batch["id"], auth),  # a batch of another task of the lab
+        (task["id"], batch["id"], auth_b),  # another lab: as if it did not exist
+    ):
+        url = f"/v1/tasks/{task_id}/demonstrations/{batch_id}"
+        for method in ("GET", "DELETE"):
+            response = client.request(method, url, headers=headers)
+            assert response.status_code == 404, (method, url, response.text)
+            assert response.headers["content-type"].startswith("application/problem+json")
+            named = batch_id if headers is auth else task_id  # lab B does not even see the task
+            assert repr(named) in response.json()["detail"], response.json()
+    assert client.get(f"/v1/tasks/{task['id']}/demonstrations/{batch['id']}", headers=auth).status_code == 200

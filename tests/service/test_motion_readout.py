@@ -276,6 +276,19 @@ def test_another_labs_demonstrators_are_not_found(
         assert mine["id"] in response.json()["detail"]
 
 
+def test_a_demonstrator_compared_with_itself_is_422_at_b_with_the_bodys_other_problems(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    dem = make_demonstrator(client, auth)
+    for extra, expected in (({}, ["/b"]), ({"bootstrap": 100}, ["/bootstrap", "/b"])):
+        response = client.post(
+            "/v1/motion-comparisons", json={"a": dem["id"], "b": dem["id"]} | extra, headers=auth
+        )
+        assert response.status_code == 422, response.text
+        assert [e["pointer"] for e in response.json()["errors"]] == expected
+    assert "same demonstrator" in response.json()["errors"][1]["message"]
+
+
 def test_no_recordings_is_a_409_with_a_reason(client: TestClient, auth: dict[str, str]) -> None:
     empty = make_demonstrator(client, auth)
     recorded = make_demonstrator(client, auth)

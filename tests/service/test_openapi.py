@@ -69,3 +69,18 @@ def test_the_job_config_schema_documents_every_fit_setting(app: FastAPI) -> None
         assert schema.get("default") == defaults[f.name], f.name  # null defaults are left out
     assert (properties["max_steps"]["minimum"], properties["max_steps"]["maximum"]) == (1, 100_000)
     assert properties["holdout_fraction"]["exclusiveMaximum"] == 1
+
+
+def test_a_job_submission_is_documented_with_its_config_schema(app: FastAPI) -> None:
+    """The route checks the body itself (every problem in one 422); the schema still says what it takes."""
+    document = app.openapi()
+    body = document["paths"]["/v1/jobs"]["post"]["requestBody"]
+    assert body["required"] and body["content"]["application/json"]["schema"] == {
+        "$ref": "#/components/schemas/JobIn"
+    }
+    job_in = document["components"]["schemas"]["JobIn"]
+    assert (job_in["required"], job_in["additionalProperties"]) == (["demonstrator_id"], False)
+    assert job_in["properties"]["config"]["anyOf"] == [
+        {"$ref": "#/components/schemas/JobConfig"},
+        {"type": "null"},
+    ]

@@ -127,6 +127,21 @@ def test_jobs_over_the_limits_are_422_naming_the_setting(
     assert client.get("/v1/jobs", headers=auth).json()["data"] == []
 
 
+def test_a_job_on_an_mdp_over_the_limits_hears_of_its_bad_settings_in_the_same_answer(
+    client: TestClient, small_app: FastAPI, auth: dict[str, str]
+) -> None:
+    big = {"kind": "grid", "name": "g", "width": 10, "height": 10, "moves": 4, "gamma": 0.9}
+    task = make_task(client, auth, mdp_id=created(client.post("/v1/mdps", json=big, headers=auth))["id"])
+    add_demonstrations(client, auth, task["id"], [{"states": [0, 1], "actions": [0]}])
+    body = {"demonstrator_id": task["demonstrator_id"], "config": {"learning_rate": "fast"}}
+    with TestClient(small_app) as limited:
+        response = limited.post("/v1/jobs", json=body, headers=auth)
+    assert response.status_code == 422, response.text
+    errors = response.json()["errors"]
+    assert [e["pointer"] for e in errors] == ["/config/learning_rate", "/demonstrator_id"]
+    assert "METAIRL_MAX_STATE_ACTIONS" in errors[1]["message"]
+
+
 def test_a_recording_that_would_create_a_grid_over_the_limits_is_422_at_the_grid_and_stores_nothing(
     small_app: FastAPI, auth: dict[str, str]
 ) -> None:

@@ -67,6 +67,18 @@ def test_unknown_events_are_refused(client: TestClient, auth: dict[str, str]) ->
     assert response.status_code == 422 and response.json()["errors"][0]["pointer"] == "/events/0"
 
 
+def test_an_unknown_event_and_a_private_target_come_in_one_answer(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    body = {"url": "http://127.0.0.1:8080/hook", "events": ["job.started"], "secret": "mine"}
+    response = client.post("/v1/webhooks", json=body, headers=auth)
+    assert response.status_code == 422, response.text
+    errors = response.json()["errors"]
+    assert [e["pointer"] for e in errors] == ["/events/0", "/secret", "/url"]
+    assert "loopback" in errors[2]["message"]
+    assert client.get("/v1/webhooks", headers=auth).json()["data"] == []
+
+
 def test_the_operator_may_allow_private_targets(settings: Settings) -> None:
     from tests.conftest import _new_key
 

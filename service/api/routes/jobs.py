@@ -17,7 +17,7 @@ from service.api.openapi import PROBLEM_RESPONSES
 from service.api.pagination import Page, PageDep
 from service.api.responses import DELETED, NO_SUCH_JOB
 from service.api.sse import MEDIA_TYPE, parse_last_event_id, stream_response, wants_stream
-from service.domain.jobs import JobEventOut, JobHistory, JobIn, JobOut
+from service.domain.jobs import JobEventOut, JobHistory, JobOut, JobSubmission
 from service.jobs.queue import EnqueueFailed
 from service.jobs.submit import create_job
 from service.jobs.transitions import cancel
@@ -39,7 +39,12 @@ router = APIRouter(tags=["jobs"], responses=PROBLEM_RESPONSES)
     responses={422: {"description": "Bad config or inputs; `errors` names each field."}},
 )
 def submit_job(
-    body: JobIn, response: Response, session: SessionDep, lab: LabDep, settings: SettingsDep, queue: QueueDep
+    body: JobSubmission,
+    response: Response,
+    session: SessionDep,
+    lab: LabDep,
+    settings: SettingsDep,
+    queue: QueueDep,
 ) -> JobOut:
     """Queue a fit of the demonstrator's tasks; poll `Location` for status and progress.
 

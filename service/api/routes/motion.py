@@ -8,6 +8,7 @@ from typing import Annotated, Literal
 
 from fastapi import APIRouter, Body, Query, Response
 
+from metairl_engine.errors import Issue, check
 from service.api.auth import LabDep
 from service.api.deps import SessionDep
 from service.api.openapi import PROBLEM_RESPONSES
@@ -16,9 +17,10 @@ from service.domain.motion import (
     COMPARISON_IN_EXAMPLES,
     MotionComparisonIn,
     MotionComparisonOut,
+    MotionComparisonSubmission,
     MotionSummaryOut,
 )
-from service.problems import Unprocessable
+from service.problems import gathering, validated
 from service.results import readout
 from service.results.downloads import Download
 from service.store.demonstrators import get_demonstrator
@@ -65,19 +67,22 @@ def motion_summary(demonstrator_id: str, session: SessionDep, lab: LabDep) -> Mo
     },
 )
 def motion_comparison(
-    body: Annotated[MotionComparisonIn, Body(openapi_examples=COMPARISON_IN_EXAMPLES)],
+    body: Annotated[MotionComparisonSubmission, Body(openapi_examples=COMPARISON_IN_EXAMPLES)],
     session: SessionDep,
     lab: LabDep,
     format: Annotated[Literal["json", "png"], Query(description="`json` (default) or `png`.")] = "json",
 ) -> MotionComparisonOut | Response:
     """Differences with intervals, summaries and learned readouts; or their figure."""
-    if body.a == body.b:
-        message = "is the same demonstrator as a: every difference would be 0; give another session"
-        raise Unprocessable(
-            f"The comparison is invalid. /b: {message}", errors=[{"pointer": "/b", "message": message}]
+    issues: list[Issue] = []  # the body's problems and a repeated demonstrator, in one 422
+    sides = gathering(issues, lambda: validated(MotionComparisonIn, body))
+    if isinstance(body.get("a"), str) and body.get("a") == body.get("b"):
+        issues.append(
+            Issue("/b", "is the same demonstrator as a: every difference would be 0; give another session")
         )
-    a = get_demonstrator(session, body.a, lab_id=lab.id)
-    b = get_demonstrator(session, body.b, lab_id=lab.id)
+    check(issues)
+    assert sides is not None  # else check raised
+    a = get_demonstrator(session, sides.a, lab_id=lab.id)
+    b = get_demonstrator(session, sides.b, lab_id=lab.id)
     comparison = readout.motion_comparison(session, a, b)
     if format == "png":
         png = readout.comparison_figure(comparison)

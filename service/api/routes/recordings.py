@@ -4,8 +4,6 @@ recordings (docs/motion.md)."""
 
 from __future__ import annotations
 
-import csv
-import io
 from pathlib import PureWindowsPath
 from typing import Annotated, Literal
 
@@ -28,6 +26,7 @@ from service.domain.recordings import (
     RecordingOptions,
     RecordingOut,
 )
+from service.files.csv_demonstrations import to_csv
 from service.files.csv_rows import check_csv_memory
 from service.files.force_plates import file_samples
 from service.files.recording_samples import SAMPLE_BYTES, check_float32, form_options, json_samples
@@ -205,15 +204,9 @@ def recording_demonstrations(
     )
     if format == "json":
         return out
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(["trajectory", "step", "state", "action"])
-    for t in out.trajectories:
-        for step, state in enumerate(t.states):
-            writer.writerow([t.trajectory, step, state, t.actions[step] if step < len(t.actions) else ""])
     return file_response(
         Download(
-            content=buffer.getvalue().encode(),
+            content=to_csv((t.trajectory, t.states, t.actions) for t in out.trajectories),
             media_type="text/csv",
             filename=f"{row.id}-demonstrations.csv",
             disposition="attachment",

@@ -2,17 +2,19 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Response, status
+from typing import Annotated
+
+from fastapi import APIRouter, Header, Query, Response, status
 
 from service.api.auth import LabDep
 from service.api.deps import SessionDep
 from service.api.openapi import PROBLEM_RESPONSES
 from service.api.pagination import Page, PageDep
-from service.api.responses import DELETED
-from service.domain.tasks import TaskIn, TaskOut, TrueRewardIn, TrueRewardOut
+from service.api.responses import DELETED, file_response
+from service.domain.tasks import TaskIn, TaskOut, TrueRewardFormat, TrueRewardIn, TrueRewardOut
 from service.problems import NotFound
+from service.results import downloads
 from service.store import tasks
-from service.store.blobs import blob_sha256, get_array
 from service.store.deletion import commit_deletion
 from service.store.deletion import delete_task as delete_task_rows
 from service.store.demonstrators import get_demonstrator
@@ -65,17 +67,46 @@ def delete_task(task_id: str, lab: LabDep, session: SessionDep) -> Response:
 
 @router.put("/tasks/{task_id}/true-reward", summary="Set a task's true reward")
 def put_true_reward(task_id: str, body: TrueRewardIn, lab: LabDep, session: SessionDep) -> TrueRewardOut:
-    """The known reward (one finite value per state), used to score learned rewards; replaces any earlier one."""
+    """The known reward (one finite value per state), used to score learned rewards; replaces any earlier one.
+    Answers what GET then reads: the values as stored (float32)."""
     row = tasks.put_true_reward(session, tasks.get_task(session, task_id, lab_id=lab.id), body.values)
     session.commit()
-    return TrueRewardOut.of(row, sha256=blob_sha256(session, row.blob_id))
+    return tasks.true_reward_out(session, row)
 
 
-@router.get("/tasks/{task_id}/true-reward", summary="Get a task's true reward")
-def get_true_reward(task_id: str, lab: LabDep, session: SessionDep) -> TrueRewardOut:
-    """The stored true reward with its values; 404 if none was set."""
-    row = tasks.get_true_reward(session, tasks.get_task(session, task_id, lab_id=lab.id))
+@router.get(
+    "/tasks/{task_id}/true-reward",
+    summary="Get a task's true reward (json, npy, csv)",
+    response_model=TrueRewardOut,
+    responses={
+        200: {
+            "description": "JSON (the reward with its `values`, as PUT answers), a float32 `.npy`, or CSV "
+            "(`state[,x,y,channel],true_reward`); the files with `ETag` and `Content-Disposition`.",
+            "content": {"application/octet-stream": {}, "text/csv": {}},
+        },
+        304: {"description": "`If-None-Match` names the file's current ETag: your copy is up to date."},
+        404: {"description": "No such task in your lab, or it has no true reward (problem+json)."},
+    },
+)
+def get_true_reward(
+    task_id: str,
+    lab: LabDep,
+    session: SessionDep,
+    format: Annotated[
+        TrueRewardFormat,
+        Query(description="`json` (default), `npy` (float32) or `csv`, as a learned reward downloads."),
+    ] = "json",
+    if_none_match: Annotated[
+        str | None, Header(description="An ETag from an earlier npy or csv download.")
+    ] = None,
+) -> TrueRewardOut | Response:
+    """The stored true reward; 404 if none was set."""
+    task = tasks.get_task(session, task_id, lab_id=lab.id)
+    row = tasks.get_true_reward(session, task)
     if row is None:
         raise NotFound(f"Task {task_id!r} has no true reward; set one with PUT.")
-    values = get_array(session, row.blob_id).tolist()
-    return TrueRewardOut.of(row, sha256=blob_sha256(session, row.blob_id), values=values)
+    if format == "json":
+        return tasks.true_reward_out(session, row)
+    return file_response(
+        downloads.true_reward_download(session, task, row, fmt=format, if_none_match=if_none_match)
+    )

@@ -10,12 +10,13 @@ from typing import Any
 
 from fastapi import APIRouter, Response, status
 
+from metairl_engine.errors import Issue, check
 from service.api.deps import LabDep, SessionDep, SettingsDep
 from service.api.openapi import PROBLEM_RESPONSES
 from service.api.pagination import Page, PageDep
-from service.domain.webhooks import WebhookCreated, WebhookIn, WebhookOut
+from service.domain.webhooks import WebhookCreated, WebhookIn, WebhookOut, WebhookSubmission
 from service.jobs.webhooks import check_target, new_secret
-from service.problems import Conflict, Unprocessable
+from service.problems import Conflict, gathering, validated
 from service.store import webhooks
 from service.store.deletion import commit_deletion
 
@@ -34,22 +35,27 @@ NO_SUCH_WEBHOOK: dict[int | str, dict[str, Any]] = {404: {"description": "No suc
     },
 )
 def create_webhook(
-    body: WebhookIn, response: Response, session: SessionDep, lab: LabDep, settings: SettingsDep
+    body: WebhookSubmission, response: Response, session: SessionDep, lab: LabDep, settings: SettingsDep
 ) -> WebhookCreated:
     """Each time one of the lab's jobs ends as one of `events`, POST `{"type", "data": <the job>}` to `url`,
     signed with the returned `secret` (shown only now) per the Standard Webhooks spec."""
+    issues: list[Issue] = []  # the body's problems and its URL target's, in one 422
+    hook = gathering(issues, lambda: validated(WebhookIn, body))
+    url = body.get("url")
+    problem = (
+        check_target(url, allow_private=settings.webhook_allow_private) if isinstance(url, str) else None
+    )
+    if problem is not None:
+        issues.append(Issue("/url", problem))
+    check(issues)
+    assert hook is not None  # else check raised
     if webhooks.count_webhooks(session, lab_id=lab.id) >= settings.webhook_max_per_lab:
         raise Conflict(
             f"Your lab already has {settings.webhook_max_per_lab} webhooks, the most allowed "
             "(METAIRL_WEBHOOK_MAX_PER_LAB); delete one first."
         )
-    problem = check_target(body.url, allow_private=settings.webhook_allow_private)
-    if problem is not None:
-        raise Unprocessable(
-            f"The webhook URL cannot be used: {problem}.", errors=[{"pointer": "/url", "message": problem}]
-        )
     row = webhooks.create_webhook(
-        session, lab_id=lab.id, url=body.url, events=sorted(set(body.events)), secret=new_secret()
+        session, lab_id=lab.id, url=hook.url, events=sorted(set(hook.events)), secret=new_secret()
     )
     session.commit()
     response.headers["Location"] = f"/v1/webhooks/{row.id}"
