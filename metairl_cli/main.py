@@ -25,6 +25,7 @@ The local lab's key is kept in METAIRL_DATA_DIR/local-api-key and printed again 
     "worker": """examples:
   metairl worker                    # one job at a time, on the configured database and broker
   metairl worker --concurrency 2    # two jobs at once (torch threads are split between them)
+  metairl worker --name second@%h   # a second worker on this host, under a node name of its own
   METAIRL_BROKER_URL=redis://127.0.0.1:6379/0 metairl worker""",
     "keys": """examples:
   metairl keys create --lab motion-lab   # prints a new key alone on the last line
@@ -113,6 +114,12 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="no Celery start-up banner nor INFO lines (warnings and errors only); 'celery@HOST ready.' once ready",
     )
+    worker.add_argument(
+        "--name",
+        default=None,
+        help="the worker's Celery node name (default celery@HOST; %%h is the host name): a second worker on one "
+        "host needs its own, as RabbitMQ lets one worker of a name consume its control queue",
+    )
 
     keys = command_parser(sub, "keys", "manage API keys")
     keys_sub = keys.add_subparsers(dest="keys_command", required=True)
@@ -153,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "worker":
         from worker.main import run_worker
 
-        return run_worker(concurrency=args.concurrency, quiet=args.quiet)
+        return run_worker(concurrency=args.concurrency, quiet=args.quiet, name=args.name)
     if args.command == "keys":
         from metairl_cli import keys as keys_cli
 

@@ -71,6 +71,23 @@ def test_serve_starts_its_worker_without_the_celery_banner(
     assert "--loglevel=WARNING" in started[0] and "--loglevel=INFO" in started[1]
 
 
+def test_a_worker_named_on_the_command_line_starts_under_that_celery_node_name(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    monkeypatch.chdir(tmp_path)  # the Celery app makes its broker folders under ./var on import
+    from worker import main as worker_main
+    from worker.celery_app import app
+
+    monkeypatch.setenv("METAIRL_WORKER_CONCURRENCY", "1")
+    started: list[list[str]] = []
+    monkeypatch.setattr(app, "start", lambda argv: started.append(argv))
+    args = build_parser().parse_args(["worker", "--name", "second@%h"])
+    worker_main.run_worker(concurrency=args.concurrency, quiet=args.quiet, name=args.name)
+    worker_main.run_worker(concurrency=1)
+    assert "--hostname=second@%h" in started[0]
+    assert not any(arg.startswith("--hostname") for arg in started[1])
+
+
 def test_a_quiet_worker_says_it_is_ready_on_the_real_stdout(capfd: pytest.CaptureFixture[str]) -> None:
     from worker.main import announce_ready
 

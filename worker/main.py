@@ -28,11 +28,13 @@ def announce_ready(sender: Any, **_: Any) -> None:
     print(f"{sender.hostname} ready.", file=sys.__stdout__, flush=True)
 
 
-def run_worker(*, concurrency: int | None = None, quiet: bool = False) -> int:
+def run_worker(*, concurrency: int | None = None, quiet: bool = False, name: str | None = None) -> int:
     """Run a worker until it is stopped (SIGTERM: finish the running jobs; SIGQUIT: now); the exit code.
     ``concurrency`` None: the setting's (``METAIRL_WORKER_CONCURRENCY``). ``quiet`` leaves out Celery's
     start-up banner and its INFO lines (Celery's log level WARNING: warnings, errors and failed jobs still
-    show) and says ``<hostname> ready.`` alone (`metairl serve` prints its own summary)."""
+    show) and says ``<hostname> ready.`` alone (`metairl serve` prints its own summary). ``name``: the
+    Celery node name (None: Celery's ``celery@HOST``); two workers of one name on RabbitMQ cannot both
+    consume the name's control queue, so the second dies at start."""
     prepare_environment(concurrency=concurrency)
     from celery.signals import worker_ready
 
@@ -53,6 +55,7 @@ def run_worker(*, concurrency: int | None = None, quiet: bool = False) -> int:
             f"--loglevel={'WARNING' if quiet else 'INFO'}",
             "--without-mingle",
             "--without-gossip",
+            *([f"--hostname={name}"] if name else []),
         ]
     )
     return int(code or 0)
