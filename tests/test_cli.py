@@ -54,17 +54,22 @@ def test_serve_runs_uvicorn_without_access_log_or_info_lines_unless_asked() -> N
     assert not build_parser().parse_args(["serve"]).access_log
 
 
-def test_serve_starts_its_worker_without_the_celery_banner(
-    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
-) -> None:
-    assert worker_command("python")[-1] == "--quiet"
+@pytest.fixture
+def started(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> list[list[str]]:
+    """The arguments each `run_worker` call hands Celery, which starts nothing."""
     monkeypatch.chdir(tmp_path)  # the Celery app makes its broker folders under ./var on import
-    from worker import main as worker_main
     from worker.celery_app import app
 
     monkeypatch.setenv("METAIRL_WORKER_CONCURRENCY", "1")
-    started: list[list[str]] = []
-    monkeypatch.setattr(app, "start", lambda argv: started.append(argv))
+    calls: list[list[str]] = []
+    monkeypatch.setattr(app, "start", lambda argv: calls.append(argv))
+    return calls
+
+
+def test_serve_starts_its_worker_without_the_celery_banner(started: list[list[str]]) -> None:
+    assert worker_command("python")[-1] == "--quiet"
+    from worker import main as worker_main
+
     worker_main.run_worker(concurrency=1, quiet=True)
     worker_main.run_worker(concurrency=1)
     assert started[0][:2] == ["--quiet", "worker"] and started[1][0] == "worker"
@@ -72,15 +77,10 @@ def test_serve_starts_its_worker_without_the_celery_banner(
 
 
 def test_a_worker_named_on_the_command_line_starts_under_that_celery_node_name(
-    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+    started: list[list[str]],
 ) -> None:
-    monkeypatch.chdir(tmp_path)  # the Celery app makes its broker folders under ./var on import
     from worker import main as worker_main
-    from worker.celery_app import app
 
-    monkeypatch.setenv("METAIRL_WORKER_CONCURRENCY", "1")
-    started: list[list[str]] = []
-    monkeypatch.setattr(app, "start", lambda argv: started.append(argv))
     args = build_parser().parse_args(["worker", "--name", "second@%h"])
     worker_main.run_worker(concurrency=args.concurrency, quiet=args.quiet, name=args.name)
     worker_main.run_worker(concurrency=1)
