@@ -215,6 +215,28 @@ def validated(model: type[M], body: Any) -> M:
         raise InvalidInput(body_issues(exc, body)) from None
 
 
+def valid_fields(model: type[BaseModel], body: Any) -> dict[str, Any]:
+    """The fields of ``body`` (a JSON object) that pass ``model``'s schema each on its own, validated, and the
+    defaults of optional ones not sent: what a route's later checks may still read of a body the schema refuses
+    (`validated` says why). A field that fails, and a required one not sent, is absent. For models without
+    model validators (each field is validated as an assignment to an otherwise empty model)."""
+    if not isinstance(body, dict):
+        return {}
+    defaults = model.model_construct()
+    out: dict[str, Any] = {}
+    for name, field in model.model_fields.items():
+        if name not in body:
+            if not field.is_required():
+                out[name] = getattr(defaults, name)
+            continue
+        try:
+            one = model.__pydantic_validator__.validate_assignment(model.model_construct(), name, body[name])
+        except ValidationError:
+            continue
+        out[name] = getattr(one, name)
+    return out
+
+
 def validation_errors(errors: Sequence[Any], body: Any) -> Unprocessable:
     """Pydantic errors as a 422: body errors get pointers, query/path/header errors name the parameter."""
     items: list[dict[str, str]] = []

@@ -90,26 +90,37 @@ def hidden_issues(hidden: Sequence[int], settings: Settings) -> list[Issue]:
     ]
 
 
-def check_request_memory(what: str, nbytes: float, settings: Settings, *, pointer: str) -> None:
-    """422 if building `what` would take `nbytes` of memory, more than ``api_max_request_memory_mb``; called
-    before the allocation, with an estimate from declared shapes, row counts or body size."""
+def request_memory_issues(what: str, nbytes: float, settings: Settings, *, pointer: str) -> list[Issue]:
+    """An issue at `pointer` if building `what` would take `nbytes` of memory, more than
+    ``api_max_request_memory_mb``; asked before the allocation, with an estimate from declared shapes, row
+    counts or body size."""
     budget = settings.api_max_request_memory_mb * 2**20
-    if nbytes > budget:
-        raise too_large(
+    if nbytes <= budget:
+        return []
+    return [
+        Issue(
             pointer,
             f"{what} would take about {nbytes / 2**20:,.0f} MiB of memory; at most "
             f"{settings.api_max_request_memory_mb:,} MiB per request (METAIRL_API_MAX_REQUEST_MEMORY_MB)",
         )
+    ]
+
+
+def check_request_memory(what: str, nbytes: float, settings: Settings, *, pointer: str) -> None:
+    """422 naming the `request_memory_issues`, if any."""
+    issues = request_memory_issues(what, nbytes, settings, pointer=pointer)
+    if issues:
+        raise too_large(issues[0].pointer, issues[0].message)
 
 
 GRID_BYTES_PER_TRANSITION = 40
 """Peak memory per (state, action) while a deterministic grid is built and validated (measured: 32M
-state-actions took 1.2 GB), and per stored transition of a slippery one (`check_grid`)."""
+state-actions took 1.2 GB), and per stored transition of a slippery one (`grid_issues`)."""
 GRID_BYTES_PER_STATE = 128
 """Peak memory per state of a grid's coordinate features and layout."""
 
 
-def check_grid(
+def grid_issues(
     *,
     width: int,
     height: int,
@@ -119,15 +130,17 @@ def check_grid(
     velocity: bool,
     settings: Settings,
     pointer: str = "",
-) -> None:
-    """422 before a grid is built if its states × actions exceed `max_state_actions` or building it would take
+) -> list[Issue]:
+    """Problems of a grid to be built: its states × actions over `max_state_actions`, else building it taking
     more than the per-request memory budget (a slippery grid stores up to one transition per action pair).
-    The error points at the grid's larger side under `pointer` (the grid object's own pointer)."""
+    Each points at the grid's larger side under `pointer` (the grid object's own pointer)."""
     n_states = width * height * (8 if velocity else 1)
     n_actions = 8 if velocity else moves + (1 if stay else 0)
     side = f"{pointer}/{'width' if width >= height else 'height'}"
     what = f"the {width:,}×{height:,} grid"
-    check_mdp_size(n_states, n_actions, None, settings, pointer=side, what=what)
+    issues = mdp_size_issues(n_states, n_actions, None, settings, pointer=side, what=what)
+    if issues:
+        return issues
     transitions = n_states * n_actions * (n_actions if slip > 0 else 1)
     estimate = transitions * GRID_BYTES_PER_TRANSITION + n_states * GRID_BYTES_PER_STATE
-    check_request_memory(f"building {what}", estimate, settings, pointer=side)
+    return request_memory_issues(f"building {what}", estimate, settings, pointer=side)

@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from fastapi import Request
 from pydantic import TypeAdapter, ValidationError
+from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import FormData, UploadFile
 from starlette.exceptions import HTTPException
 
+from metairl_engine.errors import Issue
 from service.json_input import NUL, JsonTooDeep, nul_refused, parse_json
 from service.problems import (
     ApiError,
@@ -34,9 +37,15 @@ def media_type(request: Request) -> str:
     return request.headers.get("content-type", "").partition(";")[0].strip().lower()
 
 
-async def json_body(request: Request, adapter: TypeAdapter[T]) -> T:
-    """Parse and validate a JSON body; 422 with pointers into the body on any problem, and before parsing a
-    413 naming the largest JSON body the per-request memory budget holds if its parsed form would not fit."""
+LaterChecks = Callable[[Any], list[Issue]]
+"""A route's checks after the schema, run (in the thread pool) on the parsed JSON of a body the schema refuses:
+the problems they find in the parts that pass it join the schema's in one 422."""
+
+
+async def json_body(request: Request, adapter: TypeAdapter[T], *, later: LaterChecks | None = None) -> T:
+    """Parse and validate a JSON body; 422 with pointers into the body on any problem (with those ``later``
+    finds), and before parsing a 413 naming the largest JSON body the per-request memory budget holds if its
+    parsed form would not fit. A valid body is validated straight from its bytes, never parsed twice."""
     raw = await request.body()
     check_json_size(len(raw), request.app.state.settings)
     try:
@@ -53,7 +62,11 @@ async def json_body(request: Request, adapter: TypeAdapter[T]) -> T:
             raise deep from exc
         except ApiError:
             parsed = None
-        raise validation_errors(exc.errors(include_url=False), parsed) from exc
+        problem = validation_errors(exc.errors(include_url=False), parsed)
+        if later is not None and parsed is not None:
+            found = await run_in_threadpool(later, parsed)
+            problem.errors += [{"pointer": i.pointer, "message": i.message} for i in found]
+        raise problem from exc
 
 
 def check_json_size(n_bytes: int, settings: Settings) -> None:
@@ -107,14 +120,17 @@ class Upload:
     file: UploadFile
 
 
-async def json_or_upload(request: Request, adapter: TypeAdapter[T], *, accepted: str) -> T | Upload:
-    """The body of a route that takes JSON or a file: JSON validated by ``adapter``, or the multipart form with
-    its file (`form_body`); 415 naming ``accepted`` for any other media type."""
+async def json_or_upload(
+    request: Request, adapter: TypeAdapter[T], *, accepted: str, later: LaterChecks | None = None
+) -> T | Upload:
+    """The body of a route that takes JSON or a file: JSON validated by ``adapter`` (a refused one with what
+    ``later`` finds, `json_body`), or the multipart form with its file (`form_body`); 415 naming ``accepted``
+    for any other media type."""
     kind = media_type(request)
     if kind == "multipart/form-data":
         return Upload(*await form_body(request))
     if kind == "application/json":
-        return await json_body(request, adapter)
+        return await json_body(request, adapter, later=later)
     raise unsupported(request, accepted=accepted)
 
 

@@ -6,7 +6,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from service.domain.common import Body
+from service.domain.common import AsSent, Body
 
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 
@@ -82,6 +82,11 @@ class ComparisonIn(Body):
         description="Resamplings of the weighted states for 95 % intervals of `dynamics.epic` and "
         "`dynamics.starc` (0: no intervals).",
     )
+
+
+ComparisonSubmission = Annotated[dict[str, Any], AsSent(ComparisonIn, sent=dict[str, Any])]
+"""The body of `POST /v1/comparisons`: any JSON object, documented as `ComparisonIn`; `service.results.comparisons`
+checks it with the rewards, task and lengths it names, so every problem comes in one 422."""
 
 
 class Interval(BaseModel):

@@ -74,9 +74,9 @@ class Samples:
         return located(error, self.lines)
 
 
-def check_float32(samples: Samples) -> None:
-    """422 naming each sample (and CSV line) whose t, x or y lies past float32's range: recordings are stored
-    as float32, where such a value would become infinite."""
+def float32_issues(samples: Samples) -> list[Issue]:
+    """An issue per sample whose t, x or y lies past float32's range, in sample order (at most `MAX_ISSUES`):
+    recordings are stored as float32, where such a value would become infinite."""
     found: list[tuple[int, Issue]] = []
     for name in ("t", "x", "y"):
         column = np.asarray(getattr(samples, name), dtype=np.float64)
@@ -84,9 +84,8 @@ def check_float32(samples: Samples) -> None:
             too_big = np.flatnonzero(np.isfinite(column) & (np.abs(column) > FLOAT32_MAX))
         message = f"must fit a float32 (|{name}| ≤ {FLOAT32_MAX:.4g}); recordings are stored as float32"
         found += [(int(k), Issue(f"/samples/{k}/{name}", message)) for k in too_big[:MAX_ISSUES]]
-    if found:
-        found.sort(key=lambda item: item[0])  # stable: per sample, columns in t, x, y order
-        raise samples.located(InvalidInput([issue for _, issue in found[:MAX_ISSUES]]))
+    found.sort(key=lambda item: item[0])  # stable: per sample, columns in t, x, y order
+    return [issue for _, issue in found[:MAX_ISSUES]]
 
 
 def json_samples(body: RecordingIn) -> Samples:

@@ -3,7 +3,9 @@ Pearson, Spearman and EPIC, and EPIC and STARC under the MDP's dynamics; the job
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from sqlalchemy import select
@@ -12,6 +14,7 @@ from sqlalchemy.orm import Session
 if TYPE_CHECKING:
     from metairl_engine.distances import Interval as Bootstrapped
 
+from metairl_engine.errors import Issue, check
 from service.domain.comparisons import (
     ComparedSide,
     ComparisonIn,
@@ -23,7 +26,7 @@ from service.domain.comparisons import (
 from service.domain.rewards import (
     ComparisonMatrix,
 )
-from service.problems import Conflict, Unprocessable
+from service.problems import Conflict, gathering, valid_fields, validated
 from service.results.engine_modules import dynamics, metrics, planning
 from service.results.key_states import state_occupancy, visited_states
 from service.results.rewards import (
@@ -37,25 +40,46 @@ from service.store.models.demonstrators import Demonstrator, Task
 from service.store.models.jobs import Job, Reward
 
 
-def compare(session: Session, body: ComparisonIn, *, lab_id: str) -> ComparisonOut:
+def compare(session: Session, body: Mapping[str, Any], *, lab_id: str) -> ComparisonOut:
     """Pearson, Spearman and EPIC distance of reward `a` and side `b` on all or the demonstrated states, and
-    EPIC and STARC with the dynamics of a's MDP."""
-    a = _body_reward(session, body.a.reward_id, lab_id=lab_id, pointer="/a/reward_id")
-    x_all = get_array(session, a.row.reward_blob_id)
-    y_all, side, b_tasks = _other_side(session, body.b, n_states=a.row.n_states, lab_id=lab_id)
-    tasks = [*a.task_ids, *b_tasks]
-    mask = visited_states(session, tasks, a.row.n_states) if body.states == "visited" else None
+    EPIC and STARC with the dynamics of a's MDP. ``body`` is the JSON object as sent; `InvalidInput` names
+    every problem at once: the schema's, and on the sides that pass it an unknown reward or task and a `b` whose
+    length is not a's (a task without a true reward is a 409, once nothing else is wrong)."""
+    issues: list[Issue] = []  # the body's problems and those of the rewards and task it names, in one 422
+    request = gathering(issues, lambda: validated(ComparisonIn, body))
+    sides = valid_fields(ComparisonIn, body)  # a and b, each where it passes the schema
+    a: RewardContext | None = None
+    b: _Side | None = None
+    if "a" in sides:
+        reward_id = sides["a"].reward_id
+        a = gathering(issues, lambda: _body_reward(session, reward_id, lab_id=lab_id, pointer="/a/reward_id"))
+    if "b" in sides:
+        b = gathering(issues, lambda: _other_side(session, sides["b"], lab_id=lab_id))
+    if a is not None and b is not None and b.values is not None and b.values.size != a.row.n_states:
+        message = f"{b.what} has {b.values.size} values; reward a has {a.row.n_states} states"
+        issues.append(Issue(b.pointer, message))
+    check(issues)
+    assert request is not None and a is not None and b is not None  # else check raised
+    if b.values is None:
+        task_id = b.described.task_id
+        raise Conflict(
+            f"Task {task_id} has no true reward; PUT /v1/tasks/{task_id}/true-reward first, "
+            "or post the values as b.values."
+        )
+    x_all, y_all = get_array(session, a.row.reward_blob_id), b.values
+    tasks = [*a.task_ids, *b.tasks]
+    mask = visited_states(session, tasks, a.row.n_states) if request.states == "visited" else None
     x, y = (x_all[mask], y_all[mask]) if mask is not None else (x_all, y_all)
     return ComparisonOut(
         pearson=metrics().pearson(x, y),
         spearman=metrics().spearman(x, y),
         epic_distance=metrics().epic_distance(x, y),
-        states=body.states,
+        states=request.states,
         n_states=a.row.n_states,
         n_compared=int(x.size),
-        dynamics=dynamics_distances(session, a, x_all, y_all, body=body, tasks=tasks, mask=mask),
+        dynamics=dynamics_distances(session, a, x_all, y_all, body=request, tasks=tasks, mask=mask),
         a=a.describe(),
-        b=side,
+        b=b.described,
     )
 
 
@@ -124,38 +148,37 @@ def comparison_matrix(session: Session, job: Job) -> ComparisonMatrix:
 
 
 def _body_reward(session: Session, reward_id: str, *, lab_id: str, pointer: str) -> RewardContext:
-    """A reward named in a request body: 422 at `pointer` when the lab has none with this id."""
+    """A reward named in a request body; `InvalidInput` at `pointer` when the lab has none with this id."""
     row = session.get(Reward, reward_id)
     if row is None or row.lab_id != lab_id:
-        raise Unprocessable(
-            f"No reward with id {reward_id!r}.",
-            errors=[{"pointer": pointer, "message": "no reward with this id exists in your lab"}],
-        )
+        check([Issue(pointer, "no reward with this id exists in your lab")])
+    assert row is not None  # else check raised
     return context(session, row)
 
 
-def _other_side(
-    session: Session, side: OtherSide, *, n_states: int, lab_id: str
-) -> tuple[np.ndarray, ComparedSide, list[str]]:
-    """Side b's values (checked to have `n_states`), its description, and the tasks whose visits count."""
+@dataclass(frozen=True)
+class _Side:
+    """Side b as its body names it: its values (None: a task without a true reward), its description, the
+    tasks whose visits count, and where and as what a length other than a's is reported."""
+
+    values: np.ndarray | None
+    described: ComparedSide
+    tasks: list[str]
+    pointer: str
+    what: str
+
+
+def _other_side(session: Session, side: OtherSide, *, lab_id: str) -> _Side:
+    """Side b: a learned reward or a task of the lab (else `InvalidInput` naming the field), or posted values."""
     if side.reward_id is not None:
         ctx = _body_reward(session, side.reward_id, lab_id=lab_id, pointer="/b/reward_id")
-        _check_length(ctx.row.n_states, n_states, pointer="/b/reward_id", what=f"reward {ctx.row.id}")
-        return get_array(session, ctx.row.reward_blob_id), ctx.describe(), ctx.task_ids
+        values = get_array(session, ctx.row.reward_blob_id)
+        return _Side(values, ctx.describe(), ctx.task_ids, "/b/reward_id", f"reward {ctx.row.id}")
     if side.task_id is not None:
         task = session.get(Task, side.task_id)
         if task is None or task.lab_id != lab_id:
-            raise Unprocessable(
-                f"No task with id {side.task_id!r}.",
-                errors=[{"pointer": "/b/task_id", "message": "no task with this id exists in your lab"}],
-            )
-        truth = load_true_reward(session, task.id)
-        if truth is None:
-            raise Conflict(
-                f"Task {task.id} has no true reward; PUT /v1/tasks/{task.id}/true-reward first, "
-                "or post the values as b.values."
-            )
-        _check_length(truth.size, n_states, pointer="/b/task_id", what=f"the true reward of task {task.id}")
+            check([Issue("/b/task_id", "no task with this id exists in your lab")])
+        assert task is not None  # else check raised
         demonstrator = session.get_one(Demonstrator, task.demonstrator_id)
         described = ComparedSide(
             kind="true_reward",
@@ -163,14 +186,8 @@ def _other_side(
             task_id=task.id,
             demonstrator_id=demonstrator.id,
         )
-        return truth, described, [task.id]
+        truth = load_true_reward(session, task.id)
+        return _Side(truth, described, [task.id], "/b/task_id", f"the true reward of task {task.id}")
     assert side.values is not None  # OtherSide holds exactly one of the three
-    _check_length(len(side.values), n_states, pointer="/b/values", what="values")
-    return np.asarray(side.values, dtype=np.float64), ComparedSide(kind="values", label="posted values"), []
-
-
-def _check_length(length: int, n_states: int, *, pointer: str, what: str) -> None:
-    """422 at `pointer` when side b does not have one value per state of reward a."""
-    if length != n_states:
-        message = f"{what} has {length} values; reward a has {n_states} states"
-        raise Unprocessable(f"Cannot compare: {message}.", errors=[{"pointer": pointer, "message": message}])
+    values = np.asarray(side.values, dtype=np.float64)
+    return _Side(values, ComparedSide(kind="values", label="posted values"), [], "/b/values", "values")

@@ -13,6 +13,8 @@ samples are parsed by `service.files.recording_samples`. numpy only: the API pro
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from collections.abc import Set as AbstractSet
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -22,10 +24,12 @@ from sqlalchemy.orm import Session
 
 from metairl_engine import InvalidInput, Issue
 from metairl_engine.demos import Trajectory
+from metairl_engine.errors import check
 from metairl_engine.grids import DIRECTION_NAMES
 from metairl_engine.motion.recording import (
     NO_INSTRUCTION,
     Bounds,
+    Demonstrations,
     DiscretiseSettings,
     Recording,
     SegmentSettings,
@@ -33,9 +37,11 @@ from metairl_engine.motion.recording import (
 )
 from metairl_engine.motion.sway import MIN_SWAY_SAMPLES
 from service.domain.mdps import GridMdpIn
-from service.domain.recordings import RecordingOptions, RecordingTask
-from service.files.recording_samples import Samples
-from service.problems import Conflict, Unprocessable
+from service.domain.recordings import GridIn, RecordingOptions, RecordingTask
+from service.files.recording_samples import Samples, float32_issues
+from service.problems import Conflict, gathering
+from service.settings import Settings
+from service.sizes import grid_issues
 from service.store import mdps
 from service.store.blobs import get_array, put_array
 from service.store.demonstrations import add_demonstrations
@@ -49,13 +55,6 @@ from service.store.paging import PageParams, RowPage, paginate
 from service.store.tasks import create_task
 
 
-def _invalid(pointer: str, message: str) -> Unprocessable:
-    """A 422 with one error."""
-    return Unprocessable(
-        f"The recording is invalid. {pointer}: {message}", errors=[{"pointer": pointer, "message": message}]
-    )
-
-
 @dataclass(frozen=True)
 class Target:
     """The MDP a recording maps onto: an existing row, or (``row`` None) ``grid`` to create in the upload."""
@@ -66,38 +65,41 @@ class Target:
     height: int
 
 
-def _target(session: Session, options: RecordingOptions, *, lab_id: str) -> Target:
+def _target(session: Session, mdp_id: str | None, grid: GridIn | None, *, lab_id: str) -> Target:
     """Resolve ``mdp_id`` (a velocity grid of the lab) or ``grid`` (reuse an identical grid, else create)."""
-    if options.mdp_id is not None and options.grid is None:
-        row = _velocity_mdp(session, options.mdp_id, lab_id=lab_id)
+    if mdp_id is not None and grid is None:
+        row = _velocity_mdp(session, mdp_id, lab_id=lab_id)
         assert row.layout is not None
         return Target(row=row, grid=None, width=row.layout["width"], height=row.layout["height"])
-    if options.grid is None or options.mdp_id is not None:
-        raise _invalid("/mdp_id", 'give either "mdp_id" (a velocity-grid MDP) or "grid" (width, height)')
-    g = options.grid
+    if grid is None or mdp_id is not None:
+        check([Issue("/mdp_id", 'give either "mdp_id" (a velocity-grid MDP) or "grid" (width, height)')])
+    assert grid is not None  # else check raised
     body = GridMdpIn(
         kind="grid",
-        name=f"velocity grid {g.width}×{g.height}",
-        width=g.width,
-        height=g.height,
+        name=f"velocity grid {grid.width}×{grid.height}",
+        width=grid.width,
+        height=grid.height,
         velocity=True,
-        gamma=g.gamma,
+        gamma=grid.gamma,
     )
-    return Target(row=_existing_grid(session, body, lab_id=lab_id), grid=body, width=g.width, height=g.height)
+    return Target(
+        row=_existing_grid(session, body, lab_id=lab_id), grid=body, width=grid.width, height=grid.height
+    )
 
 
 def _velocity_mdp(session: Session, mdp_id: str, *, lab_id: str) -> Mdp:
     """The lab's MDP `mdp_id` if it is a velocity grid (a layout with 8 channels covering every state)."""
     row = session.get(Mdp, mdp_id)
     if row is None or row.lab_id != lab_id:
-        raise _invalid("/mdp_id", f"no MDP with id {mdp_id!r}")
+        check([Issue("/mdp_id", f"no MDP with id {mdp_id!r}")])
+    assert row is not None  # else check raised
     layout = row.layout or {}
     if layout.get("channels") != 8 or row.n_states != 8 * layout.get("width", 0) * layout.get("height", 0):
-        raise _invalid(
-            "/mdp_id",
+        message = (
             f"MDP {mdp_id!r} is not a velocity grid (a layout with 8 velocity channels); create one with "
-            'POST /v1/mdps {"kind": "grid", "velocity": true, ...} or send "grid" instead',
+            'POST /v1/mdps {"kind": "grid", "velocity": true, ...} or send "grid" instead'
         )
+        check([Issue("/mdp_id", message)])
     return row
 
 
@@ -185,11 +187,11 @@ def lock_demonstrator(session: Session, demonstrator_id: str) -> None:
     session.execute(update(Demonstrator).where(Demonstrator.id == demonstrator_id).values(id=Demonstrator.id))
 
 
-def _check_windows(rec: Recording, windows: dict[str, float]) -> None:
-    """422 for a smoothing window (pointer: seconds) spanning more samples than the recording has: it would
+def _window_issues(rec: Recording, windows: dict[str, float]) -> list[Issue]:
+    """An issue per smoothing window (pointer: seconds) spanning more samples than the recording has: it would
     smooth nothing useful and its padding would take memory in proportion (1e308 overflowed)."""
     if len(rec.t) < 2:
-        return
+        return []
     issues = []
     for pointer, seconds in windows.items():
         span = seconds * rec.sample_rate
@@ -200,38 +202,134 @@ def _check_windows(rec: Recording, windows: dict[str, float]) -> None:
                     f"spans {span:.3g} samples, more than the recording's {len(rec.t)}; use a shorter window",
                 )
             )
-    if issues:
-        raise InvalidInput(issues)
+    return issues
+
+
+MOVEMENTS_ONLY = ("mdp_id", "grid", "discretise", "segment")
+"""Upload options that only the ``movements`` protocol uses."""
+
+
+@dataclass(frozen=True)
+class Checked:
+    """An upload that passed every check, ready to store: its samples as the engine's `Recording` and, for
+    ``movements``, the MDP they map onto, how they were discretised and their cut (None for ``standing``)."""
+
+    rec: Recording
+    target: Target | None = None
+    discretise: DiscretiseSettings | None = None
+    cut: Demonstrations | None = None
+
+
+def check_upload(
+    session: Session,
+    options: Mapping[str, Any],
+    sent: AbstractSet[str],
+    samples: Samples | None,
+    *,
+    lab_id: str,
+    settings: Settings,
+) -> tuple[Checked | None, list[Issue]]:
+    """Every check of an upload before anything is written, and the upload they passed (None if one failed or
+    could not run): values past float32, a grid over the size limits, options the protocol does not take, the
+    MDP, the samples on the plate, the smoothing windows and the cut. ``options`` holds the options that pass
+    the schema (`valid_fields`; every one of a valid body), ``sent`` the names among them the upload gave,
+    ``samples`` is None when they fail it: a check runs only when what it reads is there and the checks it
+    builds on passed, so a body the schema refuses gets every problem found in its other parts."""
+    issues: list[Issue] = []
+    fitting = None
+    if samples is not None:
+        too_big = float32_issues(samples)
+        issues += too_big
+        fitting = None if too_big else samples
+    grid = options.get("grid")
+    sized = [] if grid is None else _grid_issues(grid, settings)
+    issues += sized
+    protocol = options.get("protocol")
+    if protocol == "standing":
+        issues += [
+            Issue(f"/{name}", 'applies to protocol "movements" only; a standing recording is not cut')
+            for name in MOVEMENTS_ONLY
+            if name in sent
+        ]
+        if fitting is None or "bounds" not in options:
+            return None, issues
+        rec = gathering(issues, lambda: _standing(options["bounds"], fitting))
+        return (None if rec is None else Checked(rec)), issues
+    if protocol != "movements":  # refused by the schema: nothing else to check
+        return None, issues
+    bounds = options.get("bounds")
+    if "bounds" in options and bounds is None:
+        issues.append(
+            Issue("/bounds", 'is required for protocol "movements": the plate\'s x_min, x_max, y_min, y_max')
+        )
+    target = None
+    if not sized and {"mdp_id", "grid"} <= options.keys():
+        target = gathering(issues, lambda: _target(session, options["mdp_id"], grid, lab_id=lab_id))
+    if fitting is None or bounds is None:
+        return None, issues
+    rec = gathering(
+        issues,
+        lambda: Recording.build(
+            t=fitting.t, x=fitting.x, y=fitting.y, bounds=bounds, instruction=fitting.instruction
+        ),
+    )
+    if rec is None or not {"discretise", "segment"} <= options.keys():
+        return None, issues
+    discretise_in, segment = options["discretise"], options["segment"]
+    windows = _window_issues(
+        rec, {"/discretise/smooth_s": discretise_in.smooth_s, "/segment/smooth_s": segment.smooth_s}
+    )
+    issues += windows
+    if windows or target is None:
+        return None, issues
+    discretise = DiscretiseSettings(width=target.width, height=target.height, smooth_s=discretise_in.smooth_s)
+    cut = gathering(
+        issues, lambda: demonstrations(rec, discretise_settings=discretise, segment_settings=segment)
+    )
+    return (None if cut is None else Checked(rec, target, discretise, cut)), issues
+
+
+def _grid_issues(grid: GridIn, settings: Settings) -> list[Issue]:
+    """The size limits of `POST /v1/mdps` on the velocity grid an upload may create, at ``/grid``."""
+    return grid_issues(
+        width=grid.width,
+        height=grid.height,
+        moves=8,
+        stay=False,
+        slip=0.0,
+        velocity=True,
+        settings=settings,
+        pointer="/grid",
+    )
 
 
 def add_recording(
-    session: Session, demonstrator: Demonstrator, options: RecordingOptions, samples: Samples
+    session: Session,
+    demonstrator: Demonstrator,
+    options: RecordingOptions,
+    samples: Samples,
+    settings: Settings,
 ) -> RecordingRow:
-    """Validate and cut the recording, then add grid, tasks, demonstrations and the recording row; a
-    ``standing`` recording is validated and stored whole (`add_standing`).
+    """Check the upload (`check_upload`: every problem in one 422, each sample's CSV line named), then add grid,
+    tasks, demonstrations and the recording row; a ``standing`` recording is stored whole (`add_standing`).
 
     The demonstrator's row is locked first (`lock_demonstrator`) until the caller's transaction ends."""
-    if options.protocol == "standing":
-        return add_standing(session, demonstrator, options, samples)
-    if options.bounds is None:
-        raise _invalid(
-            "/bounds", 'is required for protocol "movements": the plate\'s x_min, x_max, y_min, y_max'
-        )
-    lab_id = demonstrator.lab_id
-    target = _target(session, options, lab_id=lab_id)
-    discretise = DiscretiseSettings(
-        width=target.width, height=target.height, smooth_s=options.discretise.smooth_s
+    checked, issues = check_upload(
+        session,
+        dict(options),
+        options.model_fields_set,
+        samples,
+        lab_id=demonstrator.lab_id,
+        settings=settings,
     )
-    try:
-        rec = Recording.build(
-            t=samples.t, x=samples.x, y=samples.y, bounds=options.bounds, instruction=samples.instruction
-        )
-        _check_windows(
-            rec, {"/discretise/smooth_s": discretise.smooth_s, "/segment/smooth_s": options.segment.smooth_s}
-        )
-        cut = demonstrations(rec, discretise_settings=discretise, segment_settings=options.segment)
-    except InvalidInput as exc:
-        raise samples.located(exc) from exc
+    if issues:
+        raise samples.located(InvalidInput(issues))
+    assert checked is not None  # every check ran and passed
+    if checked.cut is None:
+        return add_standing(session, demonstrator, options, samples, checked.rec)
+    assert checked.target is not None and checked.discretise is not None
+    rec, target, cut = checked.rec, checked.target, checked.cut
+    lab_id = demonstrator.lab_id
     recording_id = new_id("rec")
     lock_demonstrator(session, demonstrator.id)
     mdp_id = _mdp_id(session, target, lab_id=lab_id)
@@ -268,7 +366,7 @@ def add_recording(
         else put_array(session, _instruction_codes(rec.instruction), lab_id=lab_id),
         settings={
             "bounds": asdict(rec.bounds),
-            "discretise": asdict(discretise),
+            "discretise": asdict(checked.discretise),
             "segment": asdict(options.segment),
         }
         | _units_and_plate(options, samples),
@@ -285,21 +383,10 @@ def add_recording(
     return row
 
 
-MOVEMENTS_ONLY = ("mdp_id", "grid", "discretise", "segment")
-"""Upload options that only the ``movements`` protocol uses."""
-
-
 def add_standing(
-    session: Session, demonstrator: Demonstrator, options: RecordingOptions, samples: Samples
+    session: Session, demonstrator: Demonstrator, options: RecordingOptions, samples: Samples, rec: Recording
 ) -> RecordingRow:
-    """Validate a quiet-standing recording (enough samples for the sway measures, inside `bounds` when given,
-    else the samples' own extent) and store it whole: no MDP, no segments, no tasks."""
-    for name in MOVEMENTS_ONLY:
-        if name in options.model_fields_set:
-            raise _invalid(
-                f"/{name}", 'applies to protocol "movements" only; a standing recording is not cut'
-            )
-    rec = standing_recording(options, samples)
+    """Store a checked quiet-standing recording whole: no MDP, no segments, no tasks."""
     row = RecordingRow(
         id=new_id("rec"),
         lab_id=demonstrator.lab_id,
@@ -331,22 +418,26 @@ def add_standing(
 
 
 def standing_recording(options: RecordingOptions, samples: Samples) -> Recording:
-    """The samples of a standing upload as a `Recording` in `options.bounds` (else their own extent), with
-    enough samples for the sway measures and a COP that moves; 422 naming the sample or the reason."""
+    """The samples of a standing upload as a `Recording` (`_standing`); 422 naming the sample or the reason."""
     try:
-        bounds = options.bounds or _extent(samples)
-        rec = Recording.build(
-            t=samples.t, x=samples.x, y=samples.y, bounds=bounds, min_samples=MIN_SWAY_SAMPLES
-        )
+        return _standing(options.bounds, samples)
     except InvalidInput as exc:
         raise samples.located(exc) from exc
+
+
+def _standing(bounds: Bounds | None, samples: Samples) -> Recording:
+    """The samples of a standing upload as a `Recording` in `bounds` (else their own extent), with enough
+    samples for the sway measures and a COP that moves; `InvalidInput` naming the sample or the reason."""
+    rec = Recording.build(
+        t=samples.t, x=samples.x, y=samples.y, bounds=bounds or _extent(samples), min_samples=MIN_SWAY_SAMPLES
+    )
     if np.ptp(rec.x) == 0 and np.ptp(rec.y) == 0:
         hint = " (the plate's moments are zero: a C3D's FORCE_PLATFORM:ORIGIN may lack the sensor offsets)"
-        raise _invalid(
-            "/samples",
+        message = (
             f"the centre of pressure never moves over the {len(rec.t)} samples, so there is no sway to measure"
-            + (hint if samples.plate is not None else ""),
+            + (hint if samples.plate is not None else "")
         )
+        check([Issue("/samples", message)])
     return rec
 
 

@@ -182,6 +182,55 @@ def test_bad_bodies_are_422_naming_the_field(
         assert message in problem["errors"][0]["message"], (body, problem)
 
 
+def pointers(problem: dict[str, Any]) -> list[str]:
+    """The pointers of a 422's errors, in order."""
+    return [e["pointer"] for e in problem["errors"]]
+
+
+def test_comparison_with_a_bad_states_value_and_an_unknown_reward_lists_both(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    body = {"a": {"reward_id": "rwd_nope"}, "b": {"task_id": "task_nope"}, "states": "some"}
+    problem = compare(client, auth, body, 422)
+    assert pointers(problem) == ["/states", "/a/reward_id", "/b/task_id"]
+    assert "'all' or 'visited'" in problem["errors"][0]["message"]
+    assert problem["errors"][1]["message"] == "no reward with this id exists in your lab"
+
+
+def test_comparison_with_bad_weights_and_values_of_the_wrong_length_lists_both(
+    client: TestClient, auth: dict[str, str], sessions: list[dict[str, Any]]
+) -> None:
+    body = {
+        "a": {"reward_id": sessions[0]["reward_ids"][1]},
+        "b": {"values": [1.0, 2.0]},
+        "weights": "softmax",
+    }
+    problem = compare(client, auth, body, 422)
+    assert pointers(problem) == ["/weights", "/b/values"]
+    assert "has 2 values; reward a has 20 states" in problem["errors"][1]["message"]
+
+
+def test_a_side_the_schema_refuses_is_not_judged_further_while_the_other_is(
+    client: TestClient, auth: dict[str, str], sessions: list[dict[str, Any]]
+) -> None:
+    """b's values hold a string: their length is not compared with a's; a's reward is still looked up."""
+    problem = compare(client, auth, {"a": {"reward_id": "rwd_nope"}, "b": {"values": [0.0, "x"]}}, 422)
+    assert pointers(problem) == ["/b/values/1", "/a/reward_id"]
+    a = {"reward_id": sessions[0]["reward_ids"][1]}
+    problem = compare(client, auth, {"a": a, "b": {"task_id": "task_nope", "values": [1.0]}}, 422)
+    assert pointers(problem) == ["/b"]
+
+
+def test_a_task_without_a_true_reward_is_a_409_only_once_nothing_else_is_wrong(
+    client: TestClient, auth: dict[str, str], sessions: list[dict[str, Any]]
+) -> None:
+    b = {"task_id": sessions[0]["task_ids"][0]}
+    problem = compare(client, auth, {"a": {"reward_id": "rwd_nope"}, "b": b, "states": "some"}, 422)
+    assert pointers(problem) == ["/states", "/a/reward_id"]
+    conflict = compare(client, auth, {"a": {"reward_id": sessions[0]["reward_ids"][1]}, "b": b}, 409)
+    assert "true-reward" in conflict["detail"]
+
+
 def test_another_labs_rewards_and_tasks_are_unknown(
     client: TestClient, auth: dict[str, str], auth_b: dict[str, str], sessions: list[dict[str, Any]]
 ) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import time
+from typing import Any
 
 import numpy as np
 import pytest
@@ -114,6 +115,72 @@ def test_missing_field_points_at_it(client: TestClient, auth: dict[str, str]) ->
     body = {"kind": "grid", "name": "g", "width": 3, "gamma": 0.9}
     errors = problem(client.post("/v1/mdps", json=body, headers=auth))["errors"]
     assert errors == [{"pointer": "/height", "message": "Field required"}]
+
+
+def test_an_explicit_mdp_with_a_bad_gamma_and_a_next_state_out_of_range_lists_both(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    body = {
+        "kind": "explicit",
+        "name": "m",
+        "gamma": "0.9",  # a string: refused by the schema
+        "transitions": {"kind": "deterministic", "next_state": [[0, 1], [0, 7], [1, 2]]},
+    }
+    errors = problem(client.post("/v1/mdps", json=body, headers=auth))["errors"]
+    assert [e["pointer"] for e in errors] == ["/gamma", "/transitions/next_state/1/1"]
+    assert "outside 0..2" in errors[1]["message"]
+    assert client.get("/v1/mdps", headers=auth).json()["data"] == []
+
+
+def test_features_of_the_wrong_row_count_come_with_the_schemas_problems_elsewhere(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    """The layout the schema refuses is not checked against the states; the features still are."""
+    body = {
+        "kind": "explicit",
+        "name": "",
+        "gamma": 0.9,
+        "features": [[1.0], [2.0]],
+        "layout": {"width": "3", "height": 1},
+        "transitions": {"kind": "deterministic", "next_state": CORRIDOR_NEXT_STATE},
+    }
+    errors = problem(client.post("/v1/mdps", json=body, headers=auth))["errors"]
+    assert [e["pointer"] for e in errors] == ["/name", "/layout/width", "/features"]
+    assert "has 2 rows but the MDP has 3 states" in errors[2]["message"]
+
+
+def test_the_engine_judges_the_arrays_without_refused_features_but_not_without_valid_counts(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    corridor: dict[str, Any] = {
+        "kind": "explicit",
+        "name": "m",
+        "gamma": 0.9,
+        "transitions": {"kind": "deterministic", "next_state": CORRIDOR_NEXT_STATE},
+    }
+    cases: list[tuple[dict[str, Any], list[str]]] = [
+        (
+            {"features": [[1.0], ["x"], [2.0]], "layout": {"width": 2, "height": 2}},
+            ["/features/1/0", "/layout"],
+        ),
+        ({"n_states": "3", "features": [[1.0], [2.0]]}, ["/n_states"]),  # the count the arrays are judged by
+        (
+            {"transitions": {"kind": "deterministic", "next_state": [[0, "x"]]}, "n_actions": 0},
+            ["/transitions/next_state/0/1"],
+        ),
+    ]
+    for change, expected in cases:
+        errors = problem(client.post("/v1/mdps", json=corridor | change, headers=auth))["errors"]
+        assert [e["pointer"] for e in errors] == expected, (change, errors)
+
+
+def test_a_grid_with_a_bad_gamma_and_over_the_size_limit_lists_both(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    body = {"kind": "grid", "name": "g", "width": 100_000, "height": 100_000, "gamma": "high"}
+    errors = problem(client.post("/v1/mdps", json=body, headers=auth))["errors"]
+    assert [e["pointer"] for e in errors] == ["/gamma", "/width"]
+    assert "METAIRL_MAX_STATE_ACTIONS" in errors[1]["message"]
 
 
 def test_malformed_json_and_wrong_media_type(client: TestClient, auth: dict[str, str]) -> None:

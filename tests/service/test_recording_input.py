@@ -67,6 +67,19 @@ def test_a_json_sample_past_float32s_range_is_a_422_naming_it(
     assert client.get(url(dem), headers=auth).json()["data"] == []
 
 
+def test_a_json_sample_past_float32s_range_and_units_too_long_come_in_one_answer(
+    client: TestClient, auth: dict[str, str]
+) -> None:
+    dem = make_demonstrator(client, auth)
+    samples = [{"t": t, "x": x, "y": y} for t, x, y in walk().tolist()]
+    samples[5]["x"] = 1e39
+    body = {"protocol": "standing", "units": "u" * 17, "samples": samples}
+    found = errors(client.post(url(dem), json=body, headers=auth))
+    assert [e["pointer"] for e in found] == ["/units", "/samples/5/x"]
+    assert "must fit a float32" in found[1]["message"]
+    assert client.get(url(dem), headers=auth).json()["data"] == []
+
+
 def test_a_csv_cell_past_float32s_range_is_a_422_naming_its_sample_and_line(
     client: TestClient, auth: dict[str, str]
 ) -> None:

@@ -272,6 +272,47 @@ def test_the_mdp_must_be_a_velocity_grid_of_the_lab(
     assert neither.status_code == 422 and neither.json()["errors"][0]["pointer"] == "/mdp_id"
 
 
+def test_a_recording_with_a_name_too_long_and_a_sample_off_the_plate_lists_both(
+    client: TestClient, auth: dict[str, str], rows: Rows
+) -> None:
+    dem = make_demonstrator(client, auth)
+    samples = corrupt(rows, 4, y=0.5)
+    grid = {"width": SIZE, "height": SIZE}
+    response = post_json(client, auth, dem["id"], samples, grid=grid, name="n" * 201)
+    assert response.status_code == 422, response.text
+    errors = response.json()["errors"]
+    assert [e["pointer"] for e in errors] == ["/name", "/samples/4/y"]
+    assert "outside the plate" in errors[1]["message"]
+    assert client.get(f"/v1/demonstrators/{dem['id']}/recordings", headers=auth).json()["data"] == []
+    assert client.get("/v1/mdps", headers=auth).json()["data"] == []
+
+
+def test_a_recording_with_a_bad_segment_setting_and_an_unknown_mdp_lists_both(
+    client: TestClient, auth: dict[str, str], rows: Rows
+) -> None:
+    """The segment settings the schema refuses are not used to cut; the MDP is still looked up."""
+    dem = make_demonstrator(client, auth)
+    response = post_json(
+        client, auth, dem["id"], rows[:300], mdp_id="mdp_nope", segment={"min_prominence": "high"}
+    )
+    assert response.status_code == 422, response.text
+    errors = response.json()["errors"]
+    assert [e["pointer"] for e in errors] == ["/segment/min_prominence", "/mdp_id"]
+    assert "no MDP with id 'mdp_nope'" in errors[1]["message"]
+
+
+def test_samples_the_schema_refuses_are_not_judged_but_a_grid_over_the_limits_is(
+    client: TestClient, auth: dict[str, str], rows: Rows
+) -> None:
+    dem = make_demonstrator(client, auth)
+    samples = corrupt(rows, 3, t="zero")
+    response = post_json(client, auth, dem["id"], samples, grid={"width": 100_000, "height": 100_000})
+    assert response.status_code == 422, response.text
+    errors = response.json()["errors"]
+    assert [e["pointer"] for e in errors] == ["/samples/3/t", "/grid/width"]
+    assert "METAIRL_MAX_STATE_ACTIONS" in errors[1]["message"]
+
+
 def test_another_lab_gets_404(
     client: TestClient, auth: dict[str, str], auth_b: dict[str, str], rows: Rows
 ) -> None:

@@ -158,7 +158,7 @@ def test_a_recording_that_would_create_a_grid_over_the_limits_is_422_at_the_grid
         (error,) = response.json()["errors"]
         assert error["pointer"] == "/grid/width" and "METAIRL_MAX_STATE_ACTIONS" in error["message"]
         assert response.json()["detail"].startswith(
-            "Too large at /grid/width: the 30×20 grid has 4,800 states"
+            "The recording is invalid. /grid/width: the 30×20 grid has 4,800 states"
         )
         assert client.get("/v1/mdps", headers=auth).json()["data"] == []
         assert client.get(f"/v1/demonstrators/{dem['id']}/recordings", headers=auth).json()["data"] == []

@@ -14,7 +14,7 @@ from service.api.auth import LabDep
 from service.api.deps import JobDep, SessionDep
 from service.api.openapi import PROBLEM_RESPONSES
 from service.api.responses import NOT_SUCCEEDED, file_response
-from service.domain.comparisons import EXAMPLES, ComparisonIn, ComparisonOut
+from service.domain.comparisons import EXAMPLES, ComparisonOut, ComparisonSubmission
 from service.domain.rewards import ComparisonMatrix, KeyStates
 from service.results import comparisons, downloads, rewards
 from service.results.key_states import reward_key_states
@@ -28,11 +28,12 @@ MAX_KEY_STATES = 1000
     "/comparisons",
     summary="Compare a learned reward with another, a true reward or values",
     description="Rewards of any job and demonstrator of your lab compare by id (e.g. one patient "
-    "stimulated and unstimulated). A reward, task or length that does not fit is a 422 naming the field.",
+    "stimulated and unstimulated). A reward, task or length that does not fit is a 422 naming the field, in one "
+    "answer with the body's other problems.",
     responses={409: {"description": "`b.task_id` names a task without a true reward."}},
 )
 def create_comparison(
-    body: Annotated[ComparisonIn, Body(openapi_examples=EXAMPLES)], session: SessionDep, lab: LabDep
+    body: Annotated[ComparisonSubmission, Body(openapi_examples=EXAMPLES)], session: SessionDep, lab: LabDep
 ) -> ComparisonOut:
     """Pearson, Spearman (contract) and EPIC distance on all states or on the demonstrated ones."""
     return comparisons.compare(session, body, lab_id=lab.id)

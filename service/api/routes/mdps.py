@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Request, Response, status
@@ -10,6 +11,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import FormData, UploadFile
 
 from metairl_engine import MDP, Layout
+from metairl_engine.errors import Issue, check
 from service.api.auth import LabDep
 from service.api.bodies import Upload, json_or_upload
 from service.api.deps import SessionDep, SettingsDep
@@ -26,9 +28,9 @@ from service.domain.mdps import (
     MdpOut,
 )
 from service.files.npz import npz_headers, read_npz, write_npz
-from service.problems import Unprocessable
+from service.problems import Unprocessable, gathering, valid_fields
 from service.settings import Settings
-from service.sizes import check_grid, check_mdp_size
+from service.sizes import check_mdp_size, grid_issues, mdp_size_issues
 from service.store import mdps
 from service.store.deletion import commit_deletion
 from service.store.deletion import delete_mdp as delete_mdp_rows
@@ -36,6 +38,13 @@ from service.store.loaders import load_mdp
 
 router = APIRouter(tags=["mdps"], responses=PROBLEM_RESPONSES)
 MDP_IN: TypeAdapter[ExplicitMdpIn | GridMdpIn] = TypeAdapter(MdpIn)
+CHECKED: dict[str, tuple[type[ExplicitMdpIn] | type[GridMdpIn], tuple[str, ...]]] = {
+    "explicit": (ExplicitMdpIn, ("n_states", "n_actions", "transitions")),
+    "grid": (GridMdpIn, ("width", "height", "moves", "stay", "slip", "velocity")),
+}
+"""Each JSON kind's model and the fields its checks after the schema (`_json_mdp`) read besides `gamma`."""
+STAND_IN_GAMMA = 0.0
+"""The discount those checks are given in place of a `gamma` the schema refused: none of the others reads it."""
 NPZ_ARRAYS = ("features", "next_state", "s", "a", "next", "p")
 NPZ_FORM = {
     "type": "object",
@@ -80,18 +89,36 @@ async def create_mdp(
 
     Size limits (`METAIRL_MAX_STATE_ACTIONS`, `METAIRL_MAX_FEATURES`, `METAIRL_MAX_ARRAY_ELEMENTS`) are a 422
     naming the setting; an `.npz` is checked from its members' headers before any array is read."""
-    body = await json_or_upload(request, MDP_IN, accepted="application/json or multipart/form-data")
+    body = await json_or_upload(
+        request,
+        MDP_IN,
+        accepted="application/json or multipart/form-data",
+        later=partial(_refused_issues, settings),
+    )
     if isinstance(body, Upload):
         mdp = await run_in_threadpool(_mdp_from_upload, body.form, body.file, settings)
         created = await run_in_threadpool(
             mdps.create_mdp, session, lab_id=lab.id, name=_form_name(body.form), source="npz", mdp=mdp
         )
     else:
-        if isinstance(body, ExplicitMdpIn):
-            mdp = await run_in_threadpool(mdps.build_explicit, body)
-            grid = None
-        else:
-            check_grid(
+        mdp, grid = await run_in_threadpool(_json_mdp, body, settings)
+        created = await run_in_threadpool(
+            mdps.create_mdp, session, lab_id=lab.id, name=body.name, source=body.kind, mdp=mdp, grid=grid
+        )
+    await run_in_threadpool(session.commit)
+    response.headers["Location"] = f"/v1/mdps/{created.id}"
+    return MdpOut.of(created, mdps.array_blobs(session, [created]))
+
+
+def _json_mdp(body: ExplicitMdpIn | GridMdpIn, settings: Settings) -> tuple[MDP, dict[str, Any] | None]:
+    """The engine's MDP of a JSON body, and a grid's parameters; `InvalidInput` naming every problem the checks
+    after the schema find: a grid over the size or memory limits (before it is built), the engine's checks, the
+    built MDP over the size limits."""
+    if isinstance(body, ExplicitMdpIn):
+        mdp, grid = mdps.build_explicit(body), None
+    else:
+        check(
+            grid_issues(
                 width=body.width,
                 height=body.height,
                 moves=body.moves or (8 if body.velocity else 4),
@@ -100,20 +127,28 @@ async def create_mdp(
                 velocity=body.velocity,
                 settings=settings,
             )
-            mdp, grid = await run_in_threadpool(mdps.build_grid, body)
-        check_mdp_size(
-            mdp.n_states,
-            mdp.n_actions,
-            None if mdp.features is None else mdp.n_features,
-            settings,
-            pointer="",
         )
-        created = await run_in_threadpool(
-            mdps.create_mdp, session, lab_id=lab.id, name=body.name, source=body.kind, mdp=mdp, grid=grid
-        )
-    await run_in_threadpool(session.commit)
-    response.headers["Location"] = f"/v1/mdps/{created.id}"
-    return MdpOut.of(created, mdps.array_blobs(session, [created]))
+        mdp, grid = mdps.build_grid(body)
+    features = None if mdp.features is None else mdp.n_features
+    check(mdp_size_issues(mdp.n_states, mdp.n_actions, features, settings, pointer=""))
+    return mdp, grid
+
+
+def _refused_issues(settings: Settings, sent: Any) -> list[Issue]:
+    """What `_json_mdp` finds in a JSON MDP the schema refused, when its kind and the fields those checks read
+    (`CHECKED`) pass the schema; a refused `gamma` is only the schema's issue. Nothing otherwise: the checks
+    would judge the arrays against counts or a grid the body does not validly give."""
+    kind = sent.get("kind") if isinstance(sent, dict) else None
+    if not isinstance(kind, str) or kind not in CHECKED:
+        return []
+    model, read = CHECKED[kind]
+    fields = valid_fields(model, sent)
+    if not set(read) <= fields.keys():
+        return []
+    body = model.model_construct(**({"gamma": STAND_IN_GAMMA} | fields))
+    issues: list[Issue] = []
+    gathering(issues, lambda: _json_mdp(body, settings))
+    return issues
 
 
 def _form_name(form: FormData) -> str:

@@ -4,16 +4,19 @@ recordings (docs/motion.md)."""
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import PureWindowsPath
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Request, Response
 from pydantic import TypeAdapter
+from sqlalchemy.orm import Session
 from starlette.concurrency import run_in_threadpool
 
+from metairl_engine.errors import Issue
 from service.api.auth import LabDep
 from service.api.bodies import Upload, json_or_upload
-from service.api.deps import SessionDep
+from service.api.deps import SessionDep, SettingsDep
 from service.api.openapi import PROBLEM_RESPONSES, request_body
 from service.api.pagination import Page, PageDep
 from service.api.responses import file_response
@@ -29,9 +32,10 @@ from service.domain.recordings import (
 from service.files.csv_demonstrations import to_csv
 from service.files.csv_rows import check_csv_memory
 from service.files.force_plates import file_samples
-from service.files.recording_samples import SAMPLE_BYTES, check_float32, form_options, json_samples
+from service.files.recording_samples import SAMPLE_BYTES, form_options, json_samples
+from service.problems import valid_fields
 from service.results.downloads import Download
-from service.sizes import check_grid
+from service.settings import Settings
 from service.store import recordings
 from service.store.demonstrators import get_demonstrator
 
@@ -109,18 +113,26 @@ FILE_FORM = {
     ),
 )
 async def upload_recording(
-    demonstrator_id: str, request: Request, response: Response, lab: LabDep, session: SessionDep
+    demonstrator_id: str,
+    request: Request,
+    response: Response,
+    lab: LabDep,
+    session: SessionDep,
+    settings: SettingsDep,
 ) -> RecordingOut:
     """Parse the body, then validate, cut and store it in one transaction."""
     demonstrator = await run_in_threadpool(get_demonstrator, session, demonstrator_id, lab_id=lab.id)
     body = await json_or_upload(
-        request, RECORDING_IN, accepted="application/json or multipart/form-data (a CSV or C3D file)"
+        request,
+        RECORDING_IN,
+        accepted="application/json or multipart/form-data (a CSV or C3D file)",
+        later=partial(_refused_issues, session, demonstrator.lab_id, settings),
     )
     options: RecordingOptions
     if isinstance(body, Upload):
         options = form_options(body.form)
         data = await body.file.read()
-        check_csv_memory(data, row_bytes=SAMPLE_BYTES, settings=request.app.state.settings)
+        check_csv_memory(data, row_bytes=SAMPLE_BYTES, settings=settings)
         samples = await run_in_threadpool(
             file_samples, body.file.filename, data, options.plate, options.protocol, options.units
         )
@@ -130,23 +142,23 @@ async def upload_recording(
             options = options.model_copy(update={"name": PureWindowsPath(body.file.filename).name[:NAME_MAX]})
     else:
         options, samples = body, json_samples(body)
-    check_float32(samples)
-    if options.grid is not None:  # a grid the upload may create: the limits of POST /v1/mdps
-        g = options.grid
-        check_grid(
-            width=g.width,
-            height=g.height,
-            moves=8,
-            stay=False,
-            slip=0.0,
-            velocity=True,
-            settings=request.app.state.settings,
-            pointer="/grid",
-        )
-    created = await run_in_threadpool(recordings.add_recording, session, demonstrator, options, samples)
+    created = await run_in_threadpool(
+        recordings.add_recording, session, demonstrator, options, samples, settings
+    )
     await run_in_threadpool(session.commit)
     response.headers["Location"] = f"/v1/demonstrators/{demonstrator.id}/recordings"
     return RecordingOut.of(created)
+
+
+def _refused_issues(session: Session, lab_id: str, settings: Settings, sent: Any) -> list[Issue]:
+    """What the upload's checks (`recordings.check_upload`) find in the parts of a JSON recording the schema
+    refused that pass it."""
+    if not isinstance(sent, dict):
+        return []
+    options = valid_fields(RecordingIn, sent)
+    samples = json_samples(RecordingIn.model_construct(**options)) if "samples" in options else None
+    given = {name for name in options if name in sent}
+    return recordings.check_upload(session, options, given, samples, lab_id=lab_id, settings=settings)[1]
 
 
 @router.get("/demonstrators/{demonstrator_id}/recordings", summary="List a demonstrator's recordings")
