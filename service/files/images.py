@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import io
 import math
+import textwrap
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -48,6 +49,11 @@ MIN_DPI, MAX_DPI = 20, 400
 """Accepted resolutions (dots per inch)."""
 MAX_LABEL = 20
 """Matrix labels longer than this are shortened with an ellipsis."""
+TITLE_CHARS_PER_IN = 8.5
+"""Characters of a figure title (12 pt DejaVu Sans, about 0.1 inch a character) that fit an inch of figure
+width with its margins: a longer title is wrapped, not cut off at the picture's edge."""
+TITLE_LINES = 2
+"""Lines a wrapped title may take; the rest is shortened with an ellipsis."""
 
 
 def panel_grid(channels: int) -> tuple[int, int]:
@@ -159,7 +165,7 @@ def heatmap_figure(
     bar = fig.colorbar(image, ax=panels, label=colorbar_label, shrink=0.9)
     if scale and scale.ticks:
         bar.set_ticks(list(scale.ticks), labels=list(scale.ticks.values()))
-    fig.suptitle(title)
+    _suptitle(fig, title)
     if trajectories:
         _overlay(fig, panels, trajectories, layout)
     return fig
@@ -226,8 +232,15 @@ def matrix_figure(
     ax.set_xticks(range(n), short, rotation=45, ha="right", rotation_mode="anchor")
     ax.set_yticks(range(n), short)
     fig.colorbar(image, ax=ax, label=colorbar_label)
-    fig.suptitle(title)
+    _suptitle(fig, title)
     return fig
+
+
+def _suptitle(fig: Figure, title: str) -> None:
+    """The figure's title, wrapped to its width (`TITLE_CHARS_PER_IN`, at most `TITLE_LINES` lines): a task
+    and demonstrator name of any length stays inside the picture, whose size does not change."""
+    width = max(10, int(fig.get_figwidth() * TITLE_CHARS_PER_IN))
+    fig.suptitle(textwrap.fill(title, width=width, max_lines=TITLE_LINES, placeholder=" …"))
 
 
 def _heatmap_inches(layout: Layout) -> tuple[float, float]:

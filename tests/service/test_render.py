@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.lines import Line2D
 from PIL import Image
 
@@ -216,3 +217,24 @@ def test_correlation_matrix_is_annotated_on_a_fixed_diverging_scale() -> None:
 def test_matrix_refuses_a_shape_that_does_not_match_the_labels() -> None:
     with pytest.raises(ValueError):
         matrix_figure(np.eye(3), labels=["a", "b"], title="t")
+
+
+@pytest.mark.parametrize(
+    "title",
+    [
+        "goal 91 — objectworld demonstrator (uncertainty)",
+        "a task named at great length — a demonstrator whose name runs on and on and on (evidence)",
+    ],
+)
+def test_a_long_title_is_wrapped_inside_the_picture_and_its_size_stays(title: str) -> None:
+    layout = Layout(width=12, height=12)
+    fig = heatmap_figure(np.linspace(0, 1, 144), layout=layout, title=title)
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(renderer)
+    text = fig.get_suptitle()
+    box = next(t for t in fig.texts if t.get_text() == text).get_window_extent(renderer)
+    assert box.x0 >= 0 and box.x1 <= fig.bbox.width and box.y1 <= fig.bbox.height
+    assert 1 < len(text.splitlines()) <= 2 and text.replace("\n", " ").split()[:3] == title.split()[:3]
+    assert decoded_size(
+        heatmap_png(np.linspace(0, 1, 144), layout=layout, title=title)
+    ) == heatmap_pixel_size(layout=layout)

@@ -234,6 +234,11 @@ def test_dashboard_follows_a_real_job_from_queued_to_succeeded_and_shows_its_rew
     assert page.locator("#heatmaps figure").first.locator(".beside").evaluate_all(
         "boxes => boxes.map(b => b.dataset.role)"
     ) == ["uncertainty", "evidence"]
+    # Each drawn at its own aspect, not letterboxed in the reward map's fixed box.
+    aspect_errors = page.locator("#heatmaps .beside img").evaluate_all(
+        "imgs => imgs.map(i => Math.abs(i.clientHeight / i.clientWidth - i.naturalHeight / i.naturalWidth))"
+    )
+    assert len(aspect_errors) == 6 and max(aspect_errors) < 0.05, aspect_errors
     kinds = page.locator("#heatmaps figure").evaluate_all("fs => fs.map(f => f.dataset.rewardKind)")
     assert kinds == ["baseline", "task", "task"]
     assert page.locator("#heatmaps img").first.evaluate("img => img.src.startsWith('blob:')")
