@@ -7,7 +7,15 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, GetCoreSchemaHandler, Strict, TypeAdapter
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    GetCoreSchemaHandler,
+    Strict,
+    TypeAdapter,
+)
 from pydantic_core import core_schema
 
 
@@ -29,6 +37,9 @@ Integer = Annotated[int, Strict()]
 """A JSON integer: `true`, `1.0` or `"1"` are not taken for 1 (strict, unlike pydantic's default)."""
 Number = Annotated[float, Strict()]
 """A JSON number (an integer or not): `true` or `"1.5"` are not taken for a number (strict)."""
+FIRST_BAD_ITEM = Field(fail_fast=True)
+"""On a request's list: its validation stops at the first bad item, one issue however many follow. Pydantic
+keeps every error with its input: a JSON MDP of 200,000 rows of strings (5.4 MB) took an API process to 1.6 GB."""
 Metadata = Annotated[
     dict[str, Any] | None,
     Field(description="Free-form JSON object kept with the resource (e.g. age, condition, session date)."),

@@ -6,7 +6,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from service.domain.common import AsSent, Body
+from service.domain.common import FIRST_BAD_ITEM, AsSent, Body
 
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 
@@ -22,7 +22,9 @@ class OtherSide(Body):
 
     reward_id: str | None = None
     task_id: str | None = Field(default=None, description="Compare with this task's true reward.")
-    values: list[FiniteFloat] | None = Field(default=None, description="One finite value per state.")
+    values: Annotated[list[FiniteFloat], FIRST_BAD_ITEM] | None = Field(
+        default=None, description="One finite value per state."
+    )
 
     @model_validator(mode="after")
     def _exactly_one(self) -> OtherSide:

@@ -8,7 +8,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
 from metairl_engine import Trajectory
-from service.domain.common import Body, Integer, Resource, UploadFormat
+from service.domain.common import FIRST_BAD_ITEM, Body, Integer, Resource, UploadFormat
 from service.store.models.demonstrators import Demonstration
 
 Index = Annotated[Integer, Field(ge=-(2**31), le=2**31 - 1)]
@@ -32,8 +32,8 @@ BatchFormat = Literal["json", "csv"]
 class TrajectoryIn(Body):
     """One demonstration: `states[t]` is where `actions[t]` was taken; a final state may follow."""
 
-    states: list[Index]
-    actions: list[Index]
+    states: Annotated[list[Index], FIRST_BAD_ITEM]
+    actions: Annotated[list[Index], FIRST_BAD_ITEM]
 
 
 class DemonstrationsIn(Body):
@@ -41,7 +41,7 @@ class DemonstrationsIn(Body):
 
     model_config = ConfigDict(json_schema_extra={"examples": [EXAMPLE_IN]})
 
-    trajectories: list[TrajectoryIn]
+    trajectories: Annotated[list[TrajectoryIn], FIRST_BAD_ITEM]
 
 
 class DemonstrationOut(Resource):

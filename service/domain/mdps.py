@@ -8,7 +8,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
-from service.domain.common import Body, Integer, Name, Number, Resource
+from service.domain.common import FIRST_BAD_ITEM, Body, Integer, Name, Number, Resource
 from service.store.models.mdps import Mdp
 
 
@@ -16,17 +16,19 @@ class DeterministicTransitions(Body):
     """Deterministic transitions: `next_state[s][a]` is the state action a leads to from state s."""
 
     kind: Literal["deterministic"]
-    next_state: list[list[Integer]] = Field(description="S×A table of next states (0-based).")
+    next_state: Annotated[list[Annotated[list[Integer], FIRST_BAD_ITEM]], FIRST_BAD_ITEM] = Field(
+        description="S×A table of next states (0-based)."
+    )
 
 
 class SparseTransitions(Body):
     """Stochastic transitions as K triples: P(next[k] | s[k], a[k]) = p[k]; each (s, a) must sum to 1."""
 
     kind: Literal["sparse"]
-    s: list[Integer]
-    a: list[Integer]
-    next: list[Integer]
-    p: list[Number]
+    s: Annotated[list[Integer], FIRST_BAD_ITEM]
+    a: Annotated[list[Integer], FIRST_BAD_ITEM]
+    next: Annotated[list[Integer], FIRST_BAD_ITEM]
+    p: Annotated[list[Number], FIRST_BAD_ITEM]
 
 
 class LayoutIn(Body):
@@ -84,7 +86,9 @@ class ExplicitMdpIn(Body):
         default=None, description="Number of actions (default: from the arrays)."
     )
     gamma: Number = Field(description="Discount factor in [0, 1).")
-    features: list[list[Number]] | None = Field(default=None, description="S×F state features.")
+    features: Annotated[list[Annotated[list[Number], FIRST_BAD_ITEM]], FIRST_BAD_ITEM] | None = Field(
+        default=None, description="S×F state features."
+    )
     transitions: Annotated[DeterministicTransitions | SparseTransitions, Field(discriminator="kind")]
     layout: LayoutIn | None = None
 

@@ -13,7 +13,7 @@ from pydantic.json_schema import JsonDict, JsonValue
 
 from metairl_engine.motion.force_plate import MIN_FZ, PlateAxes, length_unit
 from metairl_engine.motion.recording import Bounds, DiscretiseSettings, SegmentSettings
-from service.domain.common import Body, Number, Resource, UploadFormat
+from service.domain.common import FIRST_BAD_ITEM, Body, Number, Resource, UploadFormat
 from service.store.models.recordings import Recording as RecordingRow
 
 PLATE_EXAMPLE: JsonDict = {"x_min": -0.2, "x_max": 0.2, "y_min": -0.2, "y_max": 0.2}
@@ -183,7 +183,7 @@ class RecordingIn(RecordingOptions):
 
     model_config = ConfigDict(json_schema_extra={"examples": [EXAMPLE_IN]})
 
-    samples: list[SampleIn]
+    samples: Annotated[list[SampleIn], FIRST_BAD_ITEM]
 
 
 class RecordingTask(BaseModel):

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.json_schema import JsonDict
 
-from service.domain.common import Body, Metadata, MetadataIn, Name, Number, Resource
+from service.domain.common import FIRST_BAD_ITEM, Body, Metadata, MetadataIn, Name, Number, Resource
 from service.store.models.demonstrators import Task, TrueReward
 
 TrueRewardFormat = Literal["json", "npy", "csv"]
@@ -91,7 +91,7 @@ class TrueRewardIn(Body):
 
     model_config = ConfigDict(json_schema_extra={"examples": [{"values": [0.0, 0.0, 1.0]}]})
 
-    values: list[Number]
+    values: Annotated[list[Number], FIRST_BAD_ITEM]
 
 
 class TrueRewardOut(BaseModel):
