@@ -11,7 +11,7 @@ from pydantic import BaseModel, ConfigDict, Field, computed_field
 from pydantic_core import to_json
 from sqlalchemy import Row
 
-from service.domain.common import AsSent, Body, Resource
+from service.domain.common import FIRST_BAD_ITEM, AsSent, Body, Resource
 from service.domain.job_config import ConfigAsSent, ignored_settings
 from service.store.models.job_status import JobStatus
 from service.store.models.jobs import Job, JobEvent
@@ -54,7 +54,7 @@ class JobIn(Body):
     )
 
     demonstrator_id: str
-    task_ids: list[str] | None = Field(
+    task_ids: Annotated[list[str], FIRST_BAD_ITEM] | None = Field(
         default=None,
         description="Tasks to fit together (same states and features, each with demonstrations); "
         "default: every task of the demonstrator.",

@@ -8,7 +8,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from service.domain.common import AsSent, Body, Resource
+from service.domain.common import FIRST_BAD_ITEM, AsSent, Body, Resource
 from service.store.models.webhooks import Webhook, WebhookDelivery
 
 EventName = Literal["job.succeeded", "job.failed", "job.cancelled"]
@@ -51,7 +51,7 @@ class WebhookIn(Body):
         description="An http(s) URL; private, loopback and link-local hosts are refused unless the operator "
         "allows them (METAIRL_WEBHOOK_ALLOW_PRIVATE).",
     )
-    events: list[EventName] = Field(
+    events: Annotated[list[EventName], FIRST_BAD_ITEM] = Field(
         default=["job.succeeded", "job.failed", "job.cancelled"],
         min_length=1,
         description="Event types to receive (default: all three).",

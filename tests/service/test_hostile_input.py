@@ -233,7 +233,12 @@ def array_of_bad_items(
             {"kind": "explicit", "name": "m", "gamma": 0.9, "transitions": transitions},
             "/transitions/p/0",
         )
+    if kind == "webhook events":
+        return "/v1/webhooks", {"url": "https://93.184.215.14/hook", "events": rows}, "/events/0"
     task = make_task(client, auth)["id"]
+    if kind == "job tasks":
+        demonstrator = client.get(f"/v1/tasks/{task}", headers=auth).json()["demonstrator_id"]
+        return "/v1/jobs", {"demonstrator_id": demonstrator, "task_ids": [0] * BAD_ROWS}, "/task_ids/0"
     if kind == "trajectories":
         return (
             f"/v1/tasks/{task}/demonstrations",
@@ -251,7 +256,9 @@ def array_of_bad_items(
     )
 
 
-@pytest.mark.parametrize("kind", ["features", "sparse", "trajectories", "true reward", "samples"])
+@pytest.mark.parametrize(
+    "kind", ["features", "sparse", "trajectories", "true reward", "samples", "job tasks", "webhook events"]
+)
 def test_an_array_of_bad_items_is_one_issue_at_its_first_not_one_per_item(
     client: TestClient, auth: dict[str, str], kind: str
 ) -> None:
