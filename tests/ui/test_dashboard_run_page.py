@@ -223,9 +223,11 @@ def test_every_download_link_answers_200_and_saves_a_file(demo: Demo, browser: B
     page.locator(f"tr[data-job='{demo.ids['two']}'] [data-action='run']").click()
     page.wait_for_selector("#downloads a[data-download]")
     links = page.locator("#downloads a[data-download]").evaluate_all("as => as.map(a => a.dataset.download)")
-    # the baseline's reward in 4 formats; per task reward 4, value 4, policy 3; the MDP's arrays
-    assert len(links) == 4 + 2 * 11 + 1, links
+    # the baseline's reward, spread and evidence in 4 formats each; per task also value 4 and policy 3; the
+    # MDP's arrays
+    assert len(links) == 3 * 4 + 2 * (3 * 4 + 4 + 3) + 1, links
     assert any("quantity=policy" in link and "format=npy" in link for link in links)
+    assert {"uncertainty", "evidence"} <= {link.partition("quantity=")[2] for link in links}
     assert any(link.endswith("/arrays") for link in links)
     for link in links:
         assert demo.http.get(link).status_code == 200, link

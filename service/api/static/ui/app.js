@@ -1991,11 +1991,14 @@ async function saveDownload(event, path) {
   }
 }
 
-const QUANTITY_FORMATS = { reward: ["json", "npy", "csv", "png"], value: ["json", "npy", "csv", "png"], policy: ["json", "npy", "csv"] };
+const MAPS = ["json", "npy", "csv", "png"];
+const QUANTITY_FORMATS = { reward: MAPS, value: MAPS, policy: ["json", "npy", "csv"], uncertainty: MAPS, evidence: MAPS };
 
-// The links of one reward: for each quantity it has (the baseline only a reward), each format.
+// The links of one reward: for each quantity it has (the baseline no value or policy; the spread and the evidence
+// where its links name them), each format.
 function rewardDownloads(reward) {
-  const quantities = reward.kind === "baseline" ? ["reward"] : ["reward", "value", "policy"];
+  const own = reward.kind === "baseline" ? ["reward"] : ["reward", "value", "policy"];
+  const quantities = [...own, ...["uncertainty", "evidence"].filter((quantity) => reward.links[quantity])];
   return quantities.map((quantity) =>
     el(
       "span",
