@@ -63,21 +63,6 @@ def mdp_size_issues(
     return issues
 
 
-def check_mdp_size(
-    n_states: int,
-    n_actions: int,
-    n_features: int | None,
-    settings: Settings,
-    *,
-    pointer: str,
-    what: str = "the MDP",
-) -> None:
-    """422 naming the first of `mdp_size_issues`, if any."""
-    issues = mdp_size_issues(n_states, n_actions, n_features, settings, pointer=pointer, what=what)
-    if issues:
-        raise too_large(issues[0].pointer, issues[0].message)
-
-
 def hidden_issues(hidden: Sequence[int], settings: Settings) -> list[Issue]:
     """An issue at /config/hidden/<i> per hidden layer wider than `max_hidden_units`."""
     return [
@@ -106,9 +91,9 @@ def request_memory_issues(what: str, nbytes: float, settings: Settings, *, point
     ]
 
 
-def check_request_memory(what: str, nbytes: float, settings: Settings, *, pointer: str) -> None:
-    """422 naming the `request_memory_issues`, if any."""
-    issues = request_memory_issues(what, nbytes, settings, pointer=pointer)
+def first_too_large(issues: list[Issue]) -> None:
+    """`too_large` naming the first of ``issues`` (a `*_issues` check's answer), if any: an upload read in
+    stages stops at the first limit it passes."""
     if issues:
         raise too_large(issues[0].pointer, issues[0].message)
 

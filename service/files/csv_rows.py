@@ -17,7 +17,7 @@ from typing import Any
 
 from service.problems import Unprocessable
 from service.settings import Settings
-from service.sizes import check_request_memory
+from service.sizes import first_too_large, request_memory_issues
 
 MAX_CELL_BYTES = csv.field_size_limit()
 """Longest cell a CSV may hold (Python's csv limit, 128 KiB): a longer one is a 422 naming its line."""
@@ -68,7 +68,9 @@ def check_csv_memory(data: bytes, *, row_bytes: int, settings: Settings) -> None
     """422 at /file before a CSV is parsed if its rows (counted by line breaks) would take more than the
     per-request memory budget at `row_bytes` each."""
     rows = data.count(b"\n") + 1
-    check_request_memory(f"reading {rows:,} CSV rows", rows * row_bytes, settings, pointer="/file")
+    first_too_large(
+        request_memory_issues(f"reading {rows:,} CSV rows", rows * row_bytes, settings, pointer="/file")
+    )
 
 
 def delimiter_of(line: str) -> str:

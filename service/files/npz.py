@@ -12,7 +12,7 @@ from numpy.lib import format as npy_format
 
 from service.problems import Unprocessable
 from service.settings import Settings
-from service.sizes import check_array_elements, check_request_memory
+from service.sizes import check_array_elements, first_too_large, request_memory_issues
 
 NUMERIC_KINDS = "biuf"
 """dtype kinds an uploaded array may have: booleans, integers, floats (never void, bytes or text)."""
@@ -68,8 +68,13 @@ def npz_headers(
                 check_array_elements(name, shape, settings, pointer=pointer)
                 headers[name] = (tuple(int(d) for d in shape), dtype)
             declared = sum(math.prod(shape) * dtype.itemsize for shape, dtype in headers.values())
-            check_request_memory(
-                "reading and checking the .npz's arrays", declared * NPZ_EXPANSION, settings, pointer=pointer
+            first_too_large(
+                request_memory_issues(
+                    "reading and checking the .npz's arrays",
+                    declared * NPZ_EXPANSION,
+                    settings,
+                    pointer=pointer,
+                )
             )
     except (ValueError, OSError, zipfile.BadZipFile, EOFError, KeyError) as exc:
         raise _unreadable(pointer, exc) from exc

@@ -30,7 +30,7 @@ from service.domain.mdps import (
 from service.files.npz import npz_headers, read_npz, write_npz
 from service.problems import Unprocessable, gathering, valid_fields
 from service.settings import Settings
-from service.sizes import check_mdp_size, grid_issues, mdp_size_issues
+from service.sizes import first_too_large, grid_issues, mdp_size_issues
 from service.store import mdps
 from service.store.deletion import commit_deletion
 from service.store.deletion import delete_mdp as delete_mdp_rows
@@ -189,9 +189,11 @@ def _mdp_from_upload(form: FormData, upload: UploadFile, settings: Settings) -> 
     next_state = headers.get("next_state", ((), None))[0]
     features = headers.get("features", ((), None))[0]
     if len(next_state) == 2:
-        check_mdp_size(next_state[0], next_state[1], None, settings, pointer="/file", what="next_state")
+        first_too_large(mdp_size_issues(*next_state, None, settings, pointer="/file", what="next_state"))
     if len(features) == 2:
-        check_mdp_size(features[0], 1, features[1], settings, pointer="/file", what="features")
+        first_too_large(
+            mdp_size_issues(features[0], 1, features[1], settings, pointer="/file", what="features")
+        )
     arrays = read_npz(upload.file, pointer="/file")
     unknown = sorted(set(arrays) - set(NPZ_ARRAYS))
     if unknown:
@@ -227,7 +229,7 @@ def _mdp_from_upload(form: FormData, upload: UploadFile, settings: Settings) -> 
         **arrays,
     )
     features_width = None if mdp.features is None else mdp.n_features
-    check_mdp_size(mdp.n_states, mdp.n_actions, features_width, settings, pointer="/file")
+    first_too_large(mdp_size_issues(mdp.n_states, mdp.n_actions, features_width, settings, pointer="/file"))
     return mdp
 
 
